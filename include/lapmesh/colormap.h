@@ -1,0 +1,137 @@
+// lapmesh — colour maps for per-vertex scalars, with automatic and explicit ranges.
+//
+// Maps: jet (the seed report's), viridis (perceptually uniform), coolwarm (diverging, for
+// signed values; alias "diverging"), gray. The viridis and coolwarm tables are sampled at
+// nine points and interpolated linearly in sRGB, which is within one 8-bit step of the
+// published maps for viridis and close for coolwarm.
+#ifndef LAPMESH_COLORMAP_H
+#define LAPMESH_COLORMAP_H
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+
+enum class Colormap { jet, viridis, coolwarm, gray };
+
+struct Rgb
+{
+  std::uint8_t r = 0, g = 0, b = 0;
+};
+
+inline std::optional<Colormap> parse_colormap(const std::string& s)
+{
+  if(s == "jet") return Colormap::jet;
+  if(s == "viridis") return Colormap::viridis;
+  if(s == "coolwarm" || s == "diverging") return Colormap::coolwarm;
+  if(s == "gray" || s == "grey") return Colormap::gray;
+  return std::nullopt;
+}
+
+namespace internal {
+using Rgb_table = std::array<std::array<double, 3>, 9>;
+inline const Rgb_table& viridis_table()
+{
+  static const Rgb_table t = {{{68, 1, 84}, {72, 40, 120}, {62, 73, 137}, {49, 104, 142}, {38, 130, 142},
+                               {31, 158, 137}, {53, 183, 121}, {110, 206, 88}, {253, 231, 37}}};
+  return t;
+}
+inline const Rgb_table& coolwarm_table()
+{
+  static const Rgb_table t = {{{59, 76, 192}, {98, 130, 234}, {141, 176, 254}, {184, 208, 249}, {221, 221, 221},
+                               {245, 196, 173}, {244, 154, 123}, {222, 96, 77}, {180, 4, 38}}};
+  return t;
+}
+inline Rgb interpolate(const Rgb_table& t, double x)
+{
+  const double s = x * 8.0;
+  const int i = std::min(7, int(s));
+  const double w = s - i;
+  auto channel = [&](int k) { return std::uint8_t(std::lround((1 - w) * t[i][k] + w * t[i + 1][k])); };
+  return {channel(0), channel(1), channel(2)};
+}
+} // namespace internal
+
+/// The colour of x in [0, 1] (clamped; NaN maps to the low end).
+inline Rgb map_color(Colormap map, double x)
+{
+  x = std::isnan(x) ? 0.0 : std::clamp(x, 0.0, 1.0);
+  auto to8 = [](double v) { return std::uint8_t(std::lround(255.0 * std::clamp(v, 0.0, 1.0))); };
+  switch(map) {
+    case Colormap::jet:
+      return {to8(1.5 - std::abs(4 * x - 3)), to8(1.5 - std::abs(4 * x - 2)), to8(1.5 - std::abs(4 * x - 1))};
+    case Colormap::viridis: return internal::interpolate(internal::viridis_table(), x);
+    case Colormap::coolwarm: return internal::interpolate(internal::coolwarm_table(), x);
+    default: return {to8(x), to8(x), to8(x)};
+  }
+}
+
+struct Value_range
+{
+  double min = 0, max = 1;
+};
+
+/// The automatic range of `values`: [min, max] after discarding `clip_percent` percent of the
+/// values at each end (0 keeps all); when the clipped range has both signs it is made
+/// symmetric about 0, so that 0 sits in the middle of a diverging map.
+/// Non-finite values are ignored. A constant signal gets a unit-wide range around it.
+inline Value_range auto_range(const std::vector<double>& values, double clip_percent = 0.0)
+{
+  if(!(clip_percent >= 0 && clip_percent < 50)) throw std::invalid_argument("clip percentage must be in [0, 50)");
+  std::vector<double> v;
+  v.reserve(values.size());
+  for(double x : values)
+    if(std::isfinite(x)) v.push_back(x);
+  if(v.empty()) return {0.0, 1.0};
+  const std::size_t k = std::size_t(std::floor(clip_percent / 100.0 * double(v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  double lo = v[k];
+  std::nth_element(v.begin(), v.end() - 1 - k, v.end());
+  double hi = v[v.size() - 1 - k];
+  if(lo < 0 && hi > 0) {
+    const double a = std::max(-lo, hi);
+    lo = -a;
+    hi = a;
+  }
+  if(!(hi > lo)) {
+    lo -= 0.5;
+    hi += 0.5;
+  }
+  return {lo, hi};
+}
+
+/// Parses "MIN:MAX" (MIN < MAX, finite); std::nullopt if malformed.
+inline std::optional<Value_range> parse_range(const std::string& s)
+{
+  const auto colon = s.find(':');
+  if(colon == std::string::npos) return std::nullopt;
+  try {
+    std::size_t used1 = 0, used2 = 0;
+    const std::string a = s.substr(0, colon), b = s.substr(colon + 1);
+    const double lo = std::stod(a, &used1), hi = std::stod(b, &used2);
+    if(used1 != a.size() || used2 != b.size() || !std::isfinite(lo) || !std::isfinite(hi) || !(lo < hi))
+      return std::nullopt;
+    return Value_range{lo, hi};
+  } catch(const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+/// Colours of `values` through `map` over `range` (values outside are clamped).
+inline std::vector<Rgb> colorize(const std::vector<double>& values, Colormap map, Value_range range)
+{
+  std::vector<Rgb> out(values.size());
+  const double scale = 1.0 / (range.max - range.min);
+  for(std::size_t i = 0; i < values.size(); ++i) out[i] = map_color(map, (values[i] - range.min) * scale);
+  return out;
+}
+
+} // namespace lapmesh
+
+#endif

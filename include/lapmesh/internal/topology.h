@@ -1,0 +1,187 @@
+// Internal: the connectivity of a triangle mesh as flat arrays, built once per mesh.
+//
+// Why arrays and not halfedge circulation in the hot loops: every operator of lapmesh is a
+// streaming pass over the faces (per-corner geometry) followed by a gather per vertex. The
+// sparsity pattern of the Laplacians is known from the connectivity (a vertex's row is its
+// one-ring plus itself), so it is built here once, already sorted and compressed, and each
+// assembly only writes values into it: no triplets, no sort, no duplicate collapsing.
+//
+// Conventions. Face f has corners 3f, 3f+1, 3f+2 at the vertices triangles[3f + a], in the
+// face's orientation. The edge opposite corner c = 3f+a runs from the vertex of corner
+// next(c) to the vertex of corner prev(c); it is the halfedge of face f on that edge.
+#ifndef LAPMESH_INTERNAL_TOPOLOGY_H
+#define LAPMESH_INTERNAL_TOPOLOGY_H
+
+#include <lapmesh/errors.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// Index type of vertices, corners and matrix slots; Eigen's default StorageIndex.
+using Index = int;
+
+inline Index next_corner(Index c) { return c % 3 == 2 ? c - 2 : c + 1; }
+inline Index prev_corner(Index c) { return c % 3 == 0 ? c + 2 : c - 1; }
+
+struct Mesh_topology
+{
+  Index num_vertices = 0;
+  Index num_faces = 0;
+  Index num_edges = 0;
+  Index num_boundary_edges = 0;
+
+  /// 3 vertex indices per face, in the face's orientation.
+  std::vector<Index> triangles;
+
+  /// The corners incident to vertex v are vertex_corners[corner_begin[v] .. corner_begin[v+1]).
+  std::vector<Index> corner_begin;
+  std::vector<Index> vertex_corners;
+
+  /// Symmetric sparsity pattern, diagonal included, sorted within each row. Because it is
+  /// symmetric, it is at once the CSR and the CSC (Eigen column-major) structure.
+  std::vector<Index> outer;  // num_vertices + 1
+  std::vector<Index> inner;  // number of non-zeros
+  std::vector<Index> diagonal_slot;
+
+  /// For the slot (i, j), j != i: the corner opposite the halfedge i->j and the corner
+  /// opposite the halfedge j->i (-1 where that side has no face, i.e. on the boundary).
+  /// The diagonal slots hold {-1, -1}.
+  std::vector<std::array<Index, 2>> slot_corners;
+
+  std::vector<char> on_boundary;
+
+  Index num_nonzeros() const { return static_cast<Index>(inner.size()); }
+  Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
+};
+
+/// Builds the topology from a triangle list over vertices 0..n-1.
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex, a vertex in
+/// no face, and an edge with two faces on the same side (three or more faces around an
+/// edge, or two neighbouring faces with opposite orientations).
+inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles)
+{
+  Mesh_topology t;
+  t.num_vertices = num_vertices;
+  t.num_faces = static_cast<Index>(triangles.size() / 3);
+  t.triangles = std::move(triangles);
+  const Index n = num_vertices, m = t.num_faces;
+  const std::vector<Index>& tri = t.triangles;
+
+  for(Index f = 0; f < m; ++f) {
+    const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+    if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
+      throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " +
+                         std::to_string(n) + ")",
+                       Mesh_error::Element::face, f);
+    if(a == b || b == c || a == c)
+      throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice",
+                       Mesh_error::Element::face, f);
+  }
+
+  // Vertex -> incident corners, by a counting sort.
+  t.corner_begin.assign(n + 1, 0);
+  for(Index c = 0; c < 3 * m; ++c) ++t.corner_begin[tri[c] + 1];
+  for(Index v = 0; v < n; ++v) {
+    if(t.corner_begin[v + 1] == 0)
+      throw Mesh_error("vertex " + std::to_string(v) + " is in no face",
+                       Mesh_error::Element::vertex, v);
+    t.corner_begin[v + 1] += t.corner_begin[v];
+  }
+  t.vertex_corners.resize(3 * std::size_t(m));
+  {
+    std::vector<Index> fill(t.corner_begin.begin(), t.corner_begin.end() - 1);
+    for(Index c = 0; c < 3 * m; ++c) t.vertex_corners[fill[tri[c]]++] = c;
+  }
+
+  // Rows of the one-ring pattern. Each incident corner of i contributes two halfedges:
+  // i->q (its face's halfedge leaving i, opposite the corner at r) and r->i (opposite q).
+  // They are packed as (neighbour << 33 | side << 32 | corner) so that a plain integer
+  // insertion sort (rows hold ~12 entries) orders them by neighbour, then side.
+  std::vector<std::uint64_t> ring;
+  t.outer.resize(n + 1);
+  t.diagonal_slot.resize(n);
+  t.on_boundary.assign(n, 0);
+  t.inner.reserve(7 * std::size_t(n));
+  t.slot_corners.reserve(7 * std::size_t(n));
+  t.outer[0] = 0;
+  for(Index i = 0; i < n; ++i) {
+    ring.clear();
+    for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
+      const Index c = t.vertex_corners[k];
+      const Index cq = next_corner(c), cr = prev_corner(c);
+      ring.push_back(std::uint64_t(tri[cq]) << 33 | std::uint64_t(cr));
+      ring.push_back(std::uint64_t(tri[cr]) << 33 | std::uint64_t(1) << 32 | std::uint64_t(cq));
+    }
+    for(std::size_t a = 1; a < ring.size(); ++a) {
+      const std::uint64_t key = ring[a];
+      std::size_t b = a;
+      for(; b > 0 && ring[b - 1] > key; --b) ring[b] = ring[b - 1];
+      ring[b] = key;
+    }
+    bool diagonal_done = false;
+    auto emit_diagonal = [&] {
+      t.diagonal_slot[i] = static_cast<Index>(t.inner.size());
+      t.inner.push_back(i);
+      t.slot_corners.push_back({-1, -1});
+      diagonal_done = true;
+    };
+    for(std::size_t k = 0; k < ring.size();) {
+      const Index j = static_cast<Index>(ring[k] >> 33);
+      if(!diagonal_done && j > i) emit_diagonal();
+      std::array<Index, 2> corners = {-1, -1};
+      for(; k < ring.size() && static_cast<Index>(ring[k] >> 33) == j; ++k) {
+        const Index corner = static_cast<Index>(ring[k] & 0xffffffffu);
+        Index& slot = corners[(ring[k] >> 32) & 1u];
+        if(slot != -1) {
+          const Index f = corner / 3;
+          throw Mesh_error("edge (" + std::to_string(i) + ", " + std::to_string(j) +
+                             ") at face " + std::to_string(f) +
+                             " is non-manifold: it has more than two faces, or two faces "
+                             "with opposite orientations",
+                           Mesh_error::Element::face, f);
+        }
+        slot = corner;
+      }
+      if(corners[0] == -1 || corners[1] == -1) {
+        t.on_boundary[i] = 1;
+        if(j > i) ++t.num_boundary_edges;
+      }
+      if(j > i) ++t.num_edges;
+      t.inner.push_back(j);
+      t.slot_corners.push_back(corners);
+    }
+    if(!diagonal_done) emit_diagonal();
+    t.outer[i + 1] = static_cast<Index>(t.inner.size());
+  }
+  return t;
+}
+
+/// Number of connected components (through edges), by union–find over the faces.
+inline Index count_connected_components(const Mesh_topology& t)
+{
+  std::vector<Index> parent(t.num_vertices);
+  for(Index v = 0; v < t.num_vertices; ++v) parent[v] = v;
+  auto find = [&](Index v) {
+    while(parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for(Index f = 0; f < t.num_faces; ++f)
+    for(int a = 1; a < 3; ++a) {
+      const Index x = find(t.triangles[3 * f]), y = find(t.triangles[3 * f + a]);
+      if(x != y) parent[std::max(x, y)] = std::min(x, y);
+    }
+  Index count = 0;
+  for(Index v = 0; v < t.num_vertices; ++v) count += (find(v) == v);
+  return count;
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif

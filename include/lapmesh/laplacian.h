@@ -1,0 +1,165 @@
+// lapmesh — Laplacian operators of a triangle mesh: stiffness matrices and lumped masses.
+//
+// Conventions (SPEC §1; doc/conventions.md compares them with libigl, pmp and CGAL):
+//  - Stiffness matrices are negative semidefinite, with zero row sums (S·1 = 0):
+//      cotangent  C_ij = 1/2 (cot alpha_ij + cot beta_ij),  C_ii = -sum_j C_ij
+//      uniform    W = A - D  (adjacency minus degrees)
+//    The pointwise Laplacian is L = M^-1 S, i.e. (L x)_i = 1/A_i sum_j C_ij (x_j - x_i).
+//  - Masses are lumped (diagonal) and returned as vectors: the vertex areas A_i for
+//    `cotangent`, the vertex degrees for `uniform`.
+//  - Row/column i is vertex i of the vertex numbering (see vertex_index_map below).
+#ifndef LAPMESH_LAPLACIAN_H
+#define LAPMESH_LAPLACIAN_H
+
+#include <lapmesh/errors.h>
+#include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/parameters.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <string>
+
+namespace lapmesh {
+
+/// n x 3 per-vertex vectors (positions, normals, Laplacians), row i = vertex i.
+using Vertex_vectors = internal::Positions;
+
+/// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (SPEC §1).
+struct Laplacian_pencil
+{
+  Eigen::SparseMatrix<double> stiffness;  ///< S: C (cotangent) or W (uniform); negative semidefinite
+  Eigen::VectorXd mass;                   ///< diagonal of M: A_i (cotangent) or degree (uniform)
+};
+
+namespace internal {
+
+/// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
+/// matrix with t's pattern (repeated assembly while smoothing) only the values are written.
+inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
+                            Vertex_area area, bool parallel, Laplacian_pencil& out)
+{
+  if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
+     !out.stiffness.isCompressed())
+    make_pattern_matrix(t, out.stiffness);
+  if(laplacian == Laplacian::uniform) {
+    fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
+    out.mass.resize(t.num_vertices);
+    for(Index v = 0; v < t.num_vertices; ++v) out.mass[v] = t.degree(v);
+    return;
+  }
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
+  out.mass = gather_corner_sums(t, g.corner_area, parallel);
+}
+
+inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)
+{
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  return gather_corner_sums(t, g.corner_area, parallel);
+}
+
+/// Throws Mesh_error naming the first vertex with a non-positive mass. The spectral and
+/// smoothing solvers need M positive definite; the Voronoi area can fail this on obtuse meshes.
+inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
+{
+  for(Eigen::Index i = 0; i < mass.size(); ++i)
+    if(!(mass[i] > 0))
+      throw Mesh_error("vertex " + std::to_string(i) + " has a non-positive " + to_string(area) +
+                         " area (" + std::to_string(mass[i]) +
+                         "); the mass matrix must be positive: use the mixed or barycentric area",
+                       Mesh_error::Element::vertex, i);
+}
+
+template <typename NamedParameters>
+Laplacian choose_laplacian(const NamedParameters& np)
+{
+  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::laplacian),
+                                            Laplacian::cotangent);
+}
+template <typename NamedParameters>
+Vertex_area choose_vertex_area(const NamedParameters& np)
+{
+  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::vertex_area),
+                                            Vertex_area::barycentric);
+}
+
+} // namespace internal
+
+/// \ingroup PkgLapmeshOperators
+/// @brief assembles the stiffness matrix and the lumped mass of a Laplacian of `tm`.
+///
+/// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag` (TBB)
+/// @tparam TriangleMesh a model of `FaceListGraph` whose faces are triangles
+/// @param tm the mesh: every vertex in a face, no zero-area face, manifold edges
+/// @param np optional named parameters:
+///   - `lapmesh::parameters::laplacian` (`Laplacian`, default `cotangent`)
+///   - `lapmesh::parameters::vertex_area` (`Vertex_area`, default `barycentric`)
+///   - `CGAL::parameters::vertex_point_map` (default: the internal point map of `tm`)
+///   - `CGAL::parameters::vertex_index_map` (a bijection onto 0..n-1; default: the position of
+///     the vertex in `vertices(tm)`, which is `v.idx()` for a Surface_mesh without garbage)
+/// @return (S, M) with row i = vertex i of that numbering
+/// @throws Mesh_error naming the vertex or face for invalid or degenerate input
+/// @warning computed in double precision whatever the kernel's number type.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
+                                  const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  Laplacian_pencil out;
+  internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
+                            internal::choose_vertex_area(np),
+                            internal::is_parallel<ConcurrencyTag>(), out);
+  return out;
+}
+
+/// @brief returns the cotangent stiffness matrix C (SPEC §1), negative semidefinite.
+/// Named parameters: `vertex_point_map`, `vertex_index_map` (as in laplacian_pencil()).
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Eigen::SparseMatrix<double> cotangent_stiffness_matrix(const TriangleMesh& tm,
+                                                       const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return laplacian_pencil<ConcurrencyTag>(tm, parameters::laplacian(Laplacian::cotangent, np)).stiffness;
+}
+
+/// @brief returns the uniform stiffness matrix W = A - D (graph adjacency minus degrees).
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Eigen::SparseMatrix<double> uniform_stiffness_matrix(const TriangleMesh& tm,
+                                                     const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return laplacian_pencil(tm, parameters::laplacian(Laplacian::uniform, np)).stiffness;
+}
+
+/// @brief returns the vertex areas A_i (the lumped cotangent mass) of the kind chosen by
+/// `lapmesh::parameters::vertex_area` (default barycentric). They are areas (not densities):
+/// barycentric and mixed areas sum to the surface area; Voronoi areas can be <= 0.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Eigen::VectorXd vertex_areas(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  return internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
+                                internal::is_parallel<ConcurrencyTag>());
+}
+
+/// @brief writes the vertex areas A_i into the writable vertex property map `area_map`.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh, typename VertexAreaMap,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+void compute_vertex_areas(const TriangleMesh& tm, VertexAreaMap area_map,
+                          const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  internal::write_vertex_values(mesh.vertices,
+                                internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
+                                                       internal::is_parallel<ConcurrencyTag>()),
+                                area_map);
+}
+
+} // namespace lapmesh
+
+#endif

@@ -1,0 +1,274 @@
+// Operators: stiffness matrices and vertex areas against an independent halfedge-based
+// reference, invariants (symmetry, zero row sums, total area, linear precision, scale),
+// generic-mesh support (Polyhedron_3, removed elements, index maps, boundaries, components).
+#include "test_helpers.h"
+
+#include <lapmesh/laplacian.h>
+
+#include <CGAL/Polygon_mesh_processing/measure.h>
+
+#include <Eigen/Dense>
+
+using namespace lapmesh_test;
+namespace LP = lapmesh::parameters;
+
+namespace {
+
+// Reference cotangent weights by walking halfedges with CGAL (a different code path from
+// lapmesh's corner arrays): C_ij = 1/2 sum over the faces of ij of cot(opposite angle).
+Eigen::MatrixXd reference_cotangent_matrix(const Mesh& m)
+{
+  const int n = int(num_vertices(m));
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+  for(auto h : halfedges(m)) {
+    if(is_border(h, m)) continue;
+    const auto i = source(h, m), j = target(h, m), k = target(next(h, m), m);
+    const Eigen::Vector3d pi(m.point(i).x(), m.point(i).y(), m.point(i).z());
+    const Eigen::Vector3d pj(m.point(j).x(), m.point(j).y(), m.point(j).z());
+    const Eigen::Vector3d pk(m.point(k).x(), m.point(k).y(), m.point(k).z());
+    const Eigen::Vector3d u = pi - pk, v = pj - pk;
+    const double cot = u.dot(v) / u.cross(v).norm();
+    C(i.idx(), j.idx()) += 0.5 * cot;
+    C(j.idx(), i.idx()) += 0.5 * cot;
+  }
+  for(int i = 0; i < n; ++i) C(i, i) = -(C.row(i).sum() - C(i, i));
+  return C;
+}
+
+// Reference Voronoi areas from the SPEC's edge formula: 1/8 sum (cot a + cot b) |xi - xj|^2.
+Eigen::VectorXd reference_voronoi_areas(const Mesh& m, const Eigen::MatrixXd& C)
+{
+  Eigen::VectorXd A = Eigen::VectorXd::Zero(num_vertices(m));
+  for(auto v : vertices(m))
+    for(auto w : vertices_around_target(v, m)) {
+      const double d2 = CGAL::squared_distance(m.point(v), m.point(w));
+      A[v.idx()] += 0.25 * C(v.idx(), w.idx()) * d2;  // C holds half the cotangent sum
+    }
+  return A;
+}
+
+Mesh jittered_sphere()
+{
+  auto soup = lapmesh::icosphere(3, 1.3);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-0.02, 0.02);
+  for(auto& p : soup.points)
+    for(double& c : p) c += u(rng);
+  return to_mesh(soup);
+}
+
+} // namespace
+
+TEST(Operators, CotangentStiffnessMatchesHalfedgeReference)
+{
+  const Mesh m = jittered_sphere();
+  const Eigen::MatrixXd C = Eigen::MatrixXd(lapmesh::cotangent_stiffness_matrix(m));
+  const Eigen::MatrixXd R = reference_cotangent_matrix(m);
+  EXPECT_LT((C - R).cwiseAbs().maxCoeff(), 1e-12 * R.cwiseAbs().maxCoeff());
+}
+
+TEST(Operators, StiffnessIsSymmetricWithZeroRowSums)
+{
+  const Mesh m = jittered_sphere();
+  for(auto kind : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(kind));
+    const Eigen::SparseMatrix<double>& S = pencil.stiffness;
+    const Eigen::SparseMatrix<double> St = S.transpose();
+    EXPECT_EQ((S - St).norm(), 0.0) << lapmesh::to_string(kind);
+    const Eigen::VectorXd ones = Eigen::VectorXd::Ones(S.rows());
+    EXPECT_LT((S * ones).cwiseAbs().maxCoeff(), 1e-12 * S.diagonal().cwiseAbs().maxCoeff()) << lapmesh::to_string(kind);
+    // negative semidefinite: x^T S x <= 0 for a few random x
+    for(int trial = 0; trial < 5; ++trial) {
+      const Eigen::VectorXd x = Eigen::VectorXd::Random(S.rows());
+      EXPECT_LE(x.dot(S * x), 1e-12);
+    }
+  }
+}
+
+TEST(Operators, UniformIsAdjacencyMinusDegree)
+{
+  const Mesh m = to_mesh(lapmesh::plane_patch(6, 0.2));
+  const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform));
+  for(auto v : vertices(m)) {
+    const int degree = int(CGAL::degree(v, m));
+    EXPECT_EQ(pencil.mass[v.idx()], degree);
+    EXPECT_EQ(pencil.stiffness.coeff(v.idx(), v.idx()), -degree);
+    for(auto w : vertices_around_target(v, m)) EXPECT_EQ(pencil.stiffness.coeff(v.idx(), w.idx()), 1.0);
+  }
+  EXPECT_EQ(pencil.stiffness.nonZeros(), Eigen::Index(num_vertices(m) + 2 * num_edges(m)));
+}
+
+TEST(Operators, AreasSumToSurfaceAreaAndVoronoiMatchesEdgeFormula)
+{
+  // An obtuse-rich mesh: a strongly jittered plane patch, and a jittered sphere.
+  for(const Mesh& m : {jittered_sphere(), to_mesh(lapmesh::plane_patch(12, 0.45))}) {
+    const double area = CGAL::Polygon_mesh_processing::area(m);
+    const Eigen::VectorXd bary = lapmesh::vertex_areas(m);
+    const Eigen::VectorXd mixed = lapmesh::vertex_areas(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+    const Eigen::VectorXd voronoi = lapmesh::vertex_areas(m, LP::vertex_area(lapmesh::Vertex_area::voronoi));
+    EXPECT_NEAR(bary.sum(), area, 1e-12 * area);
+    EXPECT_NEAR(mixed.sum(), area, 1e-12 * area);
+    EXPECT_GT(mixed.minCoeff(), 0.0);
+    const Eigen::VectorXd ref = reference_voronoi_areas(m, reference_cotangent_matrix(m));
+    EXPECT_LT((voronoi - ref).cwiseAbs().maxCoeff(), 1e-12 * ref.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST(Operators, MixedEqualsVoronoiOnNonObtuseMesh)
+{
+  // An icosphere has only acute triangles.
+  const Mesh m = to_mesh(lapmesh::icosphere(3));
+  const Eigen::VectorXd mixed = lapmesh::vertex_areas(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const Eigen::VectorXd voronoi = lapmesh::vertex_areas(m, LP::vertex_area(lapmesh::Vertex_area::voronoi));
+  EXPECT_LT((mixed - voronoi).cwiseAbs().maxCoeff(), 1e-14);
+}
+
+TEST(Operators, LinearPrecisionOnIrregularFlatPatch)
+{
+  // The cotangent Laplacian of any linear function vanishes at interior vertices of a flat mesh.
+  const Mesh m = to_mesh(lapmesh::plane_patch(15, 0.35, 3));
+  const auto C = lapmesh::cotangent_stiffness_matrix(m);
+  Eigen::VectorXd f(num_vertices(m));
+  for(auto v : vertices(m)) f[v.idx()] = 2.0 * m.point(v).x() - 3.0 * m.point(v).y() + 0.5;
+  const Eigen::VectorXd Cf = C * f;
+  int interior = 0;
+  for(auto v : vertices(m))
+    if(!CGAL::is_border(v, m)) {
+      EXPECT_NEAR(Cf[v.idx()], 0.0, 1e-12);
+      ++interior;
+    }
+  EXPECT_EQ(interior, 13 * 13);
+}
+
+TEST(Operators, ScaleCovariance)
+{
+  for(double s : {1e-4, 1e4}) {
+    auto soup = lapmesh::torus(30, 15);
+    const Mesh m = to_mesh(soup);
+    for(auto& p : soup.points)
+      for(double& c : p) c *= s;
+    const Mesh ms = to_mesh(soup);
+    const auto a = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+    const auto b = lapmesh::laplacian_pencil(ms, LP::vertex_area(lapmesh::Vertex_area::mixed));
+    EXPECT_LT((a.stiffness - b.stiffness).norm(), 1e-10 * a.stiffness.norm()) << s;  // cotangents are scale-free
+    EXPECT_LT((a.mass * s * s - b.mass).norm(), 1e-12 * b.mass.norm()) << s;        // areas scale by s^2
+  }
+}
+
+TEST(Operators, PolyhedronGivesTheSameMatricesAsSurfaceMesh)
+{
+  const auto soup = lapmesh::torus(20, 12);
+  const Mesh sm = to_mesh(soup);
+  const Polyhedron poly = to_mesh<Polyhedron>(soup);
+  const auto a = lapmesh::laplacian_pencil(sm, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const auto b = lapmesh::laplacian_pencil(poly, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  EXPECT_EQ((a.stiffness - b.stiffness).norm(), 0.0);
+  EXPECT_EQ((a.mass - b.mass).norm(), 0.0);
+}
+
+TEST(Operators, RemovedElementsAreSkippedAndRowsCompacted)
+{
+  // Remove a whole connected component (a small sphere) without collecting the garbage:
+  // the result must equal the operator of the remaining mesh alone.
+  Mesh both = to_mesh(lapmesh::icosphere(1, 0.5));
+  const auto torus_soup = lapmesh::torus(16, 8);
+  const Mesh torus_only = to_mesh(torus_soup);
+  const std::size_t sphere_vertices = num_vertices(both);
+  lapmesh::make_mesh(torus_soup, both);
+  std::vector<Mesh::Face_index> sphere_faces;
+  for(auto f : faces(both))
+    if(std::size_t(target(halfedge(f, both), both).idx()) < sphere_vertices) sphere_faces.push_back(f);
+  // mark the whole component removed (faces, edges, vertices), as a user's edit would
+  for(auto f : sphere_faces) both.remove_face(f);
+  std::vector<Mesh::Edge_index> sphere_edges;
+  for(auto e : edges(both))
+    if(std::size_t(source(halfedge(e, both), both).idx()) < sphere_vertices) sphere_edges.push_back(e);
+  for(auto e : sphere_edges) both.remove_edge(e);
+  for(std::size_t i = 0; i < sphere_vertices; ++i) both.remove_vertex(Mesh::Vertex_index(Mesh::size_type(i)));
+  ASSERT_TRUE(both.has_garbage());
+  ASSERT_EQ(both.number_of_vertices(), torus_only.number_of_vertices());  // num_vertices() counts removed ones too
+  const auto a = lapmesh::laplacian_pencil(both);
+  const auto b = lapmesh::laplacian_pencil(torus_only);
+  EXPECT_EQ((a.stiffness - b.stiffness).norm(), 0.0);
+  EXPECT_EQ((a.mass - b.mass).norm(), 0.0);
+}
+
+TEST(Operators, VertexIndexMapPermutesRows)
+{
+  Mesh m = to_mesh(lapmesh::icosphere(2));
+  auto reversed = m.add_property_map<Mesh::Vertex_index, std::size_t>("v:reversed").first;
+  const std::size_t n = num_vertices(m);
+  for(auto v : vertices(m)) reversed[v] = n - 1 - v.idx();
+  const Eigen::MatrixXd a = Eigen::MatrixXd(lapmesh::cotangent_stiffness_matrix(m));
+  const Eigen::MatrixXd b = Eigen::MatrixXd(lapmesh::cotangent_stiffness_matrix(m, CGAL::parameters::vertex_index_map(reversed)));
+  // equal up to the summation order of the diagonal
+  EXPECT_LT((a.colwise().reverse().rowwise().reverse() - b).norm(), 1e-14 * a.norm());
+}
+
+TEST(Operators, BoundaryAndSeveralComponents)
+{
+  Mesh m = to_mesh(lapmesh::plane_patch(5));
+  lapmesh::make_mesh(lapmesh::icosphere(1), m);
+  const auto pencil = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(pencil.stiffness.rows());
+  EXPECT_LT((pencil.stiffness * ones).norm(), 1e-12);
+  EXPECT_NEAR(pencil.mass.sum(), CGAL::Polygon_mesh_processing::area(m), 1e-12);
+  // no coupling between the two components
+  for(int k = 0; k < pencil.stiffness.outerSize(); ++k)
+    for(Eigen::SparseMatrix<double>::InnerIterator it(pencil.stiffness, k); it; ++it)
+      EXPECT_EQ(it.row() < 25, it.col() < 25);
+}
+
+TEST(Operators, ParallelEqualsSequentialBitwise)
+{
+  const Mesh m = to_mesh(lapmesh::torus(200, 100));
+  const auto a = lapmesh::laplacian_pencil<CGAL::Sequential_tag>(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const auto b = lapmesh::laplacian_pencil<CGAL::Parallel_if_available_tag>(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  EXPECT_EQ((a.stiffness - b.stiffness).norm(), 0.0);
+  EXPECT_EQ((a.mass - b.mass).norm(), 0.0);
+}
+
+TEST(Operators, InvalidMeshesAreReportedWithTheElement)
+{
+  // a zero-area face (three collinear vertices) inside an otherwise valid mesh
+  lapmesh::Triangle_soup soup = lapmesh::plane_patch(3);
+  soup.points[4] = {0.0, -1.0, 0.0};  // centre vertex moved onto the bottom edge's line
+  soup.points[4] = {-1.0 + 1e-300, -1.0, 0.0};
+  const Mesh m = to_mesh(soup);
+  try {
+    lapmesh::laplacian_pencil(m);
+    FAIL() << "expected a Mesh_error";
+  } catch(const lapmesh::Mesh_error& e) {
+    EXPECT_EQ(e.element(), lapmesh::Mesh_error::Element::face);
+    EXPECT_NE(std::string(e.what()).find("zero area"), std::string::npos) << e.what();
+  }
+  // a vertex in no face
+  Mesh isolated = to_mesh(lapmesh::icosphere(1));
+  isolated.add_vertex(Point(5, 5, 5));
+  EXPECT_THROW(lapmesh::laplacian_pencil(isolated), lapmesh::Mesh_error);
+  // a non-finite coordinate
+  Mesh nan_mesh = to_mesh(lapmesh::icosphere(1));
+  nan_mesh.point(Mesh::Vertex_index(3)) = Point(std::nan(""), 0, 0);
+  EXPECT_THROW(lapmesh::laplacian_pencil(nan_mesh), lapmesh::Mesh_error);
+  // voronoi areas can be non-positive; the check used by the solvers names the vertex
+  const Mesh obtuse = to_mesh(lapmesh::plane_patch(12, 0.49, 11));
+  const Eigen::VectorXd voronoi = lapmesh::vertex_areas(obtuse, LP::vertex_area(lapmesh::Vertex_area::voronoi));
+  if(voronoi.minCoeff() <= 0) EXPECT_THROW(lapmesh::internal::require_positive_mass(voronoi, lapmesh::Vertex_area::voronoi),
+                                           lapmesh::Mesh_error);
+  EXPECT_NO_THROW(lapmesh::internal::require_positive_mass(
+    lapmesh::vertex_areas(obtuse, LP::vertex_area(lapmesh::Vertex_area::mixed)), lapmesh::Vertex_area::mixed));
+}
+
+TEST(Operators, TopologyRejectsNonManifoldEdgesAndMixedOrientation)
+{
+  using lapmesh::internal::build_topology;
+  // three triangles around the edge (0, 1)
+  EXPECT_THROW(build_topology(5, {0, 1, 2, 1, 0, 3, 0, 1, 4}), lapmesh::Mesh_error);
+  // two triangles with opposite orientations on the edge (0, 1)
+  EXPECT_THROW(build_topology(4, {0, 1, 2, 0, 1, 3}), lapmesh::Mesh_error);
+  // consistent pair: one interior edge, four boundary edges, all vertices on the boundary
+  const auto t = build_topology(4, {0, 1, 2, 1, 0, 3});
+  EXPECT_EQ(t.num_edges, 5);
+  EXPECT_EQ(t.num_boundary_edges, 4);
+  EXPECT_EQ(lapmesh::internal::count_connected_components(t), 1);
+}

@@ -1,0 +1,45 @@
+// Shared fixtures of the test suite: mesh types and analytic meshes.
+#ifndef LAPMESH_TEST_HELPERS_H
+#define LAPMESH_TEST_HELPERS_H
+
+#include <lapmesh/shapes.h>
+
+#include <CGAL/Polyhedron_3.h>
+#include <CGAL/Polyhedron_items_with_id_3.h>
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/boost/graph/graph_traits_Polyhedron_3.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+namespace lapmesh_test {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+using Point = Kernel::Point_3;
+using Mesh = CGAL::Surface_mesh<Point>;
+using Polyhedron = CGAL::Polyhedron_3<Kernel>;
+
+template <typename Graph = Mesh>
+Graph to_mesh(const lapmesh::Triangle_soup& soup)
+{
+  Graph g;
+  if(!lapmesh::make_mesh(soup, g)) throw std::runtime_error("test mesh could not be built");
+  return g;
+}
+
+/// Path of a mesh of CGAL's data set (libcgal-demo), unpacked at configure time.
+inline std::string cgal_mesh(const std::string& name) { return std::string(LAPMESH_CGAL_MESHES) + "/" + name; }
+
+/// Root-mean-square of a vector.
+template <typename Vector>
+double rms(const Vector& v)
+{
+  return std::sqrt(v.squaredNorm() / double(v.size()));
+}
+
+} // namespace lapmesh_test
+
+#endif
