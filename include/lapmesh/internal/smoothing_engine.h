@@ -1,0 +1,361 @@
+// Internal: the array-based engine behind laplacian_smoothing.h.
+//
+// Positions live in an n x 3 row-major matrix; the operator (S, M) is assembled into the
+// fixed pattern of the topology (values rewritten in place, never re-allocated). Fixed
+// vertices (boundary + user constraints) are Dirichlet constraints: only the free block is
+// stepped or solved, the fixed positions are never written, so they stay bitwise equal.
+//
+// Implicit steps solve (M - lambda S)_FF P'_F = M_FF P_F + lambda S_FB P_B with a sparse
+// LDL^T factorisation of the free block (lower triangle only). Its pattern is built once
+// from the topology pattern (an index map slot-of-S -> slot-of-A), the symbolic analysis
+// (AMD ordering + elimination tree) is computed once, and each iteration only refactorises
+// numerically; the three coordinates are solved against one factorisation. When the matrix
+// cannot change (uniform Laplacian, or a fixed operator) it is factorised once.
+#ifndef LAPMESH_INTERNAL_SMOOTHING_ENGINE_H
+#define LAPMESH_INTERNAL_SMOOTHING_ENGINE_H
+
+#include <lapmesh/errors.h>
+#include <lapmesh/laplacian.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+
+/// The time discretisation of the Laplacian flow.
+enum class Smoothing_scheme {
+  explicit_euler,  ///< P <- P + lambda L P (forward Euler); stable only below the bound
+  implicit_euler,  ///< (M - lambda S) P' = M P (backward Euler); unconditionally stable
+  conformal        ///< conformalized mean curvature flow (Kazhdan et al. 2012): S of the input, M updated
+};
+
+/// What a smoothing run did. Times are wall-clock seconds spent in each phase.
+struct Smoothing_report
+{
+  int iterations = 0;
+  std::size_t free_vertices = 0;
+  /// For the explicit scheme: 2 / mu_max, mu_max the largest eigenvalue of -L on the free
+  /// vertices of the input mesh; the scheme is stable for lambda below it (NaN otherwise).
+  double stability_bound = std::numeric_limits<double>::quiet_NaN();
+  bool above_stability_bound = false;
+  double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
+  int factorizations = 0;
+};
+
+namespace internal {
+
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point t0)
+{
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Largest eigenvalue of -M_FF^-1 S_FF (the free block of -L), by Lanczos on the symmetric
+/// form M^-1/2 (-S) M^-1/2, which has the same spectrum. Extreme Ritz values converge first;
+/// no reorthogonalisation is needed for the largest one (ghost copies do not move it). The
+/// returned value is the Ritz value plus its residual bound |beta_k s_k|, so that 2 / result
+/// errs on the safe side. `free_mask[i]` = 0 for fixed vertices.
+inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& pencil,
+                                                     const std::vector<char>& free_mask, bool parallel,
+                                                     int max_steps = 300, double rel_tol = 1e-7)
+{
+  const Index n = Index(pencil.mass.size());
+  const auto& S = pencil.stiffness;
+  Eigen::VectorXd inv_sqrt_m(n);
+  for(Index i = 0; i < n; ++i) inv_sqrt_m[i] = free_mask[i] ? 1.0 / std::sqrt(pencil.mass[i]) : 0.0;
+  auto apply = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    for_each_index(n, parallel, [&](Index i) {
+      if(!free_mask[i]) { y[i] = 0; return; }
+      double s = 0;
+      for(Index k = S.outerIndexPtr()[i]; k < S.outerIndexPtr()[i + 1]; ++k) {
+        const Index j = S.innerIndexPtr()[k];
+        s += S.valuePtr()[k] * inv_sqrt_m[j] * x[j];
+      }
+      y[i] = -inv_sqrt_m[i] * s;
+    });
+  };
+  // Deterministic start with components on every free vertex.
+  Eigen::VectorXd v(n), w(n), v_prev = Eigen::VectorXd::Zero(n);
+  std::uint64_t state = 0x9E3779B97F4A7C15ull;
+  for(Index i = 0; i < n; ++i) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    v[i] = free_mask[i] ? double(state >> 11) / double(1ull << 53) - 0.5 : 0.0;
+  }
+  const double norm0 = v.norm();
+  if(!(norm0 > 0)) return 0.0;
+  v /= norm0;
+  std::vector<double> alpha, beta;
+  double estimate = 0, previous = -1;
+  for(int k = 0; k < max_steps; ++k) {
+    apply(v, w);
+    const double a = w.dot(v);
+    w -= a * v;
+    if(k > 0) w -= beta.back() * v_prev;
+    alpha.push_back(a);
+    const double b = w.norm();
+    // Ritz values of the k+1 x k+1 tridiagonal matrix.
+    const int m = int(alpha.size());
+    Eigen::MatrixXd T = Eigen::MatrixXd::Zero(m, m);
+    for(int r = 0; r < m; ++r) {
+      T(r, r) = alpha[r];
+      if(r + 1 < m) T(r, r + 1) = T(r + 1, r) = beta[r];
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(T);
+    const double theta = es.eigenvalues()[m - 1];
+    const double residual = std::abs(b * es.eigenvectors()(m - 1, m - 1));
+    estimate = theta + residual;
+    if(residual <= rel_tol * theta || b <= 1e-14 * std::abs(theta)) break;
+    if(k >= 20 && std::abs(estimate - previous) <= rel_tol * estimate) break;
+    previous = estimate;
+    beta.push_back(b);
+    v_prev.swap(v);
+    v = w / b;
+  }
+  return estimate;
+}
+
+/// Signed enclosed volume (divergence theorem) and volume centroid of a closed mesh.
+inline void volume_and_centroid(const Mesh_topology& t, const Positions& P, double& volume, Eigen::Vector3d& centroid)
+{
+  double V = 0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const Eigen::Vector3d a = P.row(t.triangles[3 * f]), b = P.row(t.triangles[3 * f + 1]),
+                          d = P.row(t.triangles[3 * f + 2]);
+    const double v6 = a.dot(b.cross(d));  // 6 x volume of the tetrahedron (0, a, b, d)
+    V += v6;
+    c += v6 * (a + b + d);
+  }
+  volume = V / 6.0;
+  centroid = V != 0 ? Eigen::Vector3d(c / (4.0 * V)) : Eigen::Vector3d::Zero();
+}
+
+struct Smoothing_settings
+{
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;
+  Laplacian laplacian = Laplacian::cotangent;
+  Vertex_area area = Vertex_area::barycentric;
+  double lambda = 0;
+  int iterations = 1;
+  bool fixed_operator = false;
+  bool restore_volume = false;
+  bool parallel = false;
+  std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
+};
+
+inline void check_settings(const Smoothing_settings& s)
+{
+  if(!(s.lambda > 0) || !std::isfinite(s.lambda))
+    throw std::invalid_argument("the time step lambda must be a positive finite number (got " +
+                                std::to_string(s.lambda) + ")");
+  if(s.iterations <= 0)
+    throw std::invalid_argument("the number of iterations must be positive (got " + std::to_string(s.iterations) + ")");
+}
+
+/// Smooths P in place. `fixed[i]` != 0 marks a user-constrained vertex; boundary vertices are
+/// added here. Throws Mesh_error (non-positive mass, degenerate face), Numerical_error
+/// (failed factorisation or solve, non-finite result), std::invalid_argument (settings).
+inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, std::vector<char> fixed,
+                                         const Smoothing_settings& s)
+{
+  check_settings(s);
+  const Index n = t.num_vertices;
+  fixed.resize(n, 0);
+  for(Index i = 0; i < n; ++i) fixed[i] = fixed[i] || t.on_boundary[i];
+  std::vector<char> free_mask(n);
+  std::vector<Index> fid(n, -1);
+  Index nf = 0;
+  for(Index i = 0; i < n; ++i) {
+    free_mask[i] = !fixed[i];
+    if(!fixed[i]) fid[i] = nf++;
+  }
+
+  Smoothing_report report;
+  report.free_vertices = std::size_t(nf);
+  if(s.restore_volume && nf != n)
+    throw std::invalid_argument("volume restoration needs a closed mesh without constrained vertices "
+                                "(it rescales the whole mesh, which would move fixed vertices)");
+  double volume0 = 0;
+  Eigen::Vector3d centroid0;
+  if(s.restore_volume) {
+    volume_and_centroid(t, P, volume0, centroid0);
+    if(!(std::abs(volume0) > 0)) throw Mesh_error("volume restoration: the mesh encloses no volume");
+  }
+
+  Laplacian_pencil pencil;
+  auto t0 = Clock::now();
+  assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
+  if(s.laplacian == Laplacian::cotangent) require_positive_mass(pencil.mass, s.area);
+  report.assembly_seconds += seconds_since(t0);
+
+  const bool geometric = s.laplacian == Laplacian::cotangent;
+  // What must be recomputed each iteration from the current positions.
+  const bool rebuild_stiffness = geometric && !s.fixed_operator && s.scheme != Smoothing_scheme::conformal;
+  const bool rebuild_mass = geometric && !s.fixed_operator;
+
+  if(s.scheme == Smoothing_scheme::explicit_euler) {
+    const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, s.parallel);
+    report.stability_bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+    report.above_stability_bound = s.lambda > report.stability_bound;
+  }
+
+  const auto& S = pencil.stiffness;
+  const Index* outer = S.outerIndexPtr();
+  const Index* inner = S.innerIndexPtr();
+
+  // ---- explicit ----
+  if(s.scheme == Smoothing_scheme::explicit_euler) {
+    Positions next(P.rows(), 3);
+    for(int it = 0; it < s.iterations; ++it) {
+      if(it > 0 && rebuild_stiffness) {
+        t0 = Clock::now();
+        assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
+        require_positive_mass(pencil.mass, s.area);
+        report.assembly_seconds += seconds_since(t0);
+      }
+      t0 = Clock::now();
+      const double* values = S.valuePtr();
+      for_each_index(n, s.parallel, [&](Index i) {
+        if(!free_mask[i]) { next.row(i) = P.row(i); return; }
+        double x = 0, y = 0, z = 0;
+        for(Index k = outer[i]; k < outer[i + 1]; ++k) {
+          const double w = values[k];
+          const double* p = P.data() + 3 * std::size_t(inner[k]);
+          x += w * p[0]; y += w * p[1]; z += w * p[2];
+        }
+        const double c = s.lambda / pencil.mass[i];
+        next(i, 0) = P(i, 0) + c * x;
+        next(i, 1) = P(i, 1) + c * y;
+        next(i, 2) = P(i, 2) + c * z;
+      });
+      P.swap(next);
+      report.solve_seconds += seconds_since(t0);
+      if(s.restore_volume) {
+        double V; Eigen::Vector3d c;
+        volume_and_centroid(t, P, V, c);
+        const double f = std::cbrt(volume0 / V);
+        for(Index i = 0; i < n; ++i) P.row(i) = (P.row(i) - c.transpose()) * f + centroid0.transpose();
+      }
+      if(!P.allFinite())
+        throw Numerical_error("explicit smoothing diverged at iteration " + std::to_string(it + 1) +
+                              " (lambda " + std::to_string(s.lambda) + " is above the stability bound " +
+                              std::to_string(report.stability_bound) + ")");
+      ++report.iterations;
+      if(s.progress) s.progress(it + 1, s.iterations);
+    }
+    return report;
+  }
+
+  // ---- implicit / conformal: pattern of the lower triangle of the free block ----
+  t0 = Clock::now();
+  using SpMat = Eigen::SparseMatrix<double>;
+  SpMat A(nf, nf);
+  std::vector<Index> a_source;   // slot of S feeding each slot of A
+  std::vector<Index> a_diagonal(nf);
+  {
+    std::vector<Index> a_outer(nf + 1, 0), a_inner;
+    a_inner.reserve(std::size_t(S.nonZeros()) / 2 + nf);
+    a_source.reserve(a_inner.capacity());
+    for(Index j = 0; j < n; ++j) {
+      if(!free_mask[j]) continue;
+      for(Index k = outer[j]; k < outer[j + 1]; ++k) {  // column j = row j (symmetric pattern)
+        const Index i = inner[k];
+        if(i < j || !free_mask[i]) continue;
+        if(i == j) a_diagonal[fid[j]] = Index(a_inner.size());
+        a_inner.push_back(fid[i]);
+        a_source.push_back(k);
+      }
+      a_outer[fid[j] + 1] = Index(a_inner.size());
+    }
+    A.resizeNonZeros(Index(a_inner.size()));
+    std::copy(a_outer.begin(), a_outer.end(), A.outerIndexPtr());
+    std::copy(a_inner.begin(), a_inner.end(), A.innerIndexPtr());
+  }
+  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<Index>> solver;
+  solver.analyzePattern(A);
+  if(solver.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
+  report.analysis_seconds += seconds_since(t0);
+
+  Eigen::Matrix<double, Eigen::Dynamic, 3> B(nf, 3), X(nf, 3);
+  bool factorized = false;
+  for(int it = 0; it < s.iterations; ++it) {
+    if(it > 0 && (rebuild_stiffness || rebuild_mass)) {
+      t0 = Clock::now();
+      if(rebuild_stiffness) {
+        assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
+      } else {
+        pencil.mass = vertex_areas(t, P, s.area, s.parallel);
+      }
+      require_positive_mass(pencil.mass, s.area);
+      report.assembly_seconds += seconds_since(t0);
+      factorized = false;
+    }
+    const double* values = S.valuePtr();
+    if(!factorized) {
+      t0 = Clock::now();
+      double* a = A.valuePtr();
+      const Index na = A.nonZeros();
+      for(Index k = 0; k < na; ++k) a[k] = -s.lambda * values[a_source[k]];
+      for(Index i = 0; i < n; ++i)
+        if(free_mask[i]) a[a_diagonal[fid[i]]] += pencil.mass[i];
+      solver.factorize(A);
+      ++report.factorizations;
+      if(solver.info() != Eigen::Success || !(solver.vectorD().minCoeff() > 0))
+        throw Numerical_error("the Cholesky factorisation of M - lambda S failed at iteration " +
+                              std::to_string(it + 1) + ": the matrix is not positive definite");
+      factorized = true;
+      report.factorization_seconds += seconds_since(t0);
+    }
+    t0 = Clock::now();
+    // Right-hand side: M_FF P_F + lambda S_FB P_B.
+    for_each_index(n, s.parallel, [&](Index i) {
+      if(!free_mask[i]) return;
+      Eigen::Vector3d b = pencil.mass[i] * P.row(i).transpose();
+      for(Index k = outer[i]; k < outer[i + 1]; ++k)
+        if(!free_mask[inner[k]]) b += s.lambda * values[k] * P.row(inner[k]).transpose();
+      B.row(fid[i]) = b.transpose();
+    });
+    X = solver.solve(B);
+    if(solver.info() != Eigen::Success || !X.allFinite())
+      throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
+    for(Index i = 0; i < n; ++i)
+      if(free_mask[i]) P.row(i) = X.row(fid[i]);
+    report.solve_seconds += seconds_since(t0);
+    if(s.restore_volume) {
+      double V; Eigen::Vector3d c;
+      volume_and_centroid(t, P, V, c);
+      const double f = std::cbrt(volume0 / V);
+      for(Index i = 0; i < n; ++i) P.row(i) = (P.row(i) - c.transpose()) * f + centroid0.transpose();
+    }
+    ++report.iterations;
+    if(s.progress) s.progress(it + 1, s.iterations);
+  }
+  return report;
+}
+
+/// Mean length of the edges (each edge counted once).
+inline double mean_edge_length(const Mesh_topology& t, const Positions& P)
+{
+  double sum = 0;
+  std::size_t count = 0;
+  for(Index i = 0; i < t.num_vertices; ++i)
+    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k) {
+      const Index j = t.inner[k];
+      if(j <= i) continue;
+      sum += (P.row(i) - P.row(j)).norm();
+      ++count;
+    }
+  return count ? sum / double(count) : 0.0;
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif

@@ -1,0 +1,183 @@
+// lapmesh — Laplacian smoothing: explicit and implicit Laplacian flow, and conformalized
+// mean curvature flow (SPEC §1 "Smoothing").
+//
+//   explicit   P <- P + lambda L P                  (L = M^-1 S; stable for lambda < 2 / mu_max)
+//   implicit   (M - lambda S) P' = M P              (backward Euler, SPD, unconditionally stable)
+//   conformal  (M_t - lambda S_0) P' = M_t P        (Kazhdan, Solomon, Ben-Chen 2012: the
+//              stiffness of the input is kept, the mass follows the surface; CGAL's smooth_shape)
+//
+// Uniform Laplacian: (S, M) = (W, D), so the implicit step is (I - lambda Lu) P' = P and
+// lambda is dimensionless. Cotangent Laplacian: (S, M) = (C, diag(A_i)); lambda is a time
+// and scales like a length squared: use scale_free_time_step() to make one number work on
+// meshes of any size (lambda = tau * mean edge length^2).
+//
+// Boundary vertices and vertices marked by `vertex_is_constrained_map` are Dirichlet
+// constraints: their positions are never written (bitwise fixed), their terms move to the
+// right-hand side, and only the free block is solved.
+#ifndef LAPMESH_LAPLACIAN_SMOOTHING_H
+#define LAPMESH_LAPLACIAN_SMOOTHING_H
+
+#include <lapmesh/internal/smoothing_engine.h>
+#include <lapmesh/laplacian.h>
+#include <lapmesh/parameters.h>
+
+#include <CGAL/boost/graph/named_params_helper.h>
+
+#include <functional>
+
+namespace lapmesh {
+
+/// bool; default false: keep the operator of the input mesh for all iterations instead of
+/// rebuilding it from the current positions (the default, mean curvature flow).
+LAPMESH_NAMED_PARAMETER(fixed_operator)
+/// bool; default false: after each step, rescale about the centroid to the enclosed volume of
+/// the input and move the volume centroid back (closed meshes without constrained vertices).
+LAPMESH_NAMED_PARAMETER(restore_volume)
+/// std::function<void(int done, int total)>, called after each iteration.
+LAPMESH_NAMED_PARAMETER(progress_callback)
+
+namespace internal {
+
+template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
+Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double lambda, const NamedParameters& np)
+{
+  using CGAL::parameters::choose_parameter;
+  using CGAL::parameters::get_parameter;
+  using CGAL::parameters::is_default_parameter;
+
+  auto mesh = extract_mesh(tm, np);
+  Smoothing_settings s;
+  s.scheme = scheme;
+  s.laplacian = choose_laplacian(np);
+  s.area = choose_vertex_area(np);
+  s.lambda = lambda;
+  s.iterations = int(choose_parameter(get_parameter(np, CGAL::internal_np::number_of_iterations), 1));
+  s.fixed_operator = choose_parameter(get_parameter(np, internal_np::fixed_operator), false);
+  s.restore_volume = choose_parameter(get_parameter(np, internal_np::restore_volume), false);
+  s.parallel = is_parallel<ConcurrencyTag>();
+  if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value)
+    s.progress = get_parameter(np, internal_np::progress_callback);
+
+  std::vector<char> fixed(mesh.vertices.size(), 0);
+  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
+    auto vcm = get_parameter(np, CGAL::internal_np::vertex_is_constrained);
+    for(std::size_t i = 0; i < mesh.vertices.size(); ++i) fixed[i] = get(vcm, mesh.vertices[i]) ? 1 : 0;
+  }
+  const internal::Positions before = mesh.positions;
+  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, std::move(fixed), s);
+
+  // Write back only what moved: fixed vertices keep their exact kernel coordinates.
+  using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
+  Vpm vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point), get_property_map(CGAL::vertex_point, tm));
+  using Point = typename boost::property_traits<Vpm>::value_type;
+  for(std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const auto r = mesh.positions.row(Index(i));
+    if(r == before.row(Index(i))) continue;
+    put(vpm, mesh.vertices[i], Point(r[0], r[1], r[2]));
+  }
+  return report;
+}
+
+} // namespace internal
+
+/// \ingroup PkgLapmeshSmoothing
+/// @brief smooths `tm` by explicit (forward Euler) Laplacian flow, P <- P + lambda L P.
+///
+/// Stable only for lambda below 2 / mu_max, mu_max the largest eigenvalue of -L on the free
+/// vertices; the bound of the input mesh is computed (Lanczos) and returned in the report,
+/// with `above_stability_bound` set when lambda exceeds it. With the operator rebuilt every
+/// iteration (default) the bound can drift as the mesh changes.
+///
+/// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag`
+/// @param tm a triangle mesh; positions are written through the vertex point map
+/// @param lambda the time step (> 0)
+/// @param np named parameters:
+///   - `CGAL::parameters::number_of_iterations` (default 1)
+///   - `CGAL::parameters::vertex_is_constrained_map` (readable bool map; default none)
+///   - `CGAL::parameters::vertex_point_map`, `vertex_index_map`
+///   - `lapmesh::parameters::laplacian` (default cotangent), `vertex_area` (default barycentric)
+///   - `lapmesh::parameters::fixed_operator` (default false), `restore_volume` (default false),
+///     `progress_callback`
+/// @throws std::invalid_argument for lambda <= 0 or NaN and iterations <= 0; Mesh_error for
+///   invalid meshes or a non-positive vertex area; Numerical_error when the flow diverges.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Smoothing_report smooth_laplacian_explicit(TriangleMesh& tm, double lambda,
+                                           const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return internal::smooth_mesh<ConcurrencyTag>(Smoothing_scheme::explicit_euler, tm, lambda, np);
+}
+
+/// @brief smooths `tm` by implicit (backward Euler) Laplacian flow, (M - lambda S) P' = M P.
+///
+/// The SPD free block is factorised by a sparse LDL^T (Eigen::SimplicialLDLT, AMD ordering);
+/// the symbolic analysis is done once, and the matrix is refactorised only when it changes
+/// (each iteration for the rebuilt cotangent operator; once for `uniform` or `fixed_operator`).
+/// Named parameters as for smooth_laplacian_explicit().
+/// @throws Numerical_error when a factorisation or solve fails.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Smoothing_report smooth_laplacian_implicit(TriangleMesh& tm, double lambda,
+                                           const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return internal::smooth_mesh<ConcurrencyTag>(Smoothing_scheme::implicit_euler, tm, lambda, np);
+}
+
+/// @brief smooths `tm` by conformalized mean curvature flow (Kazhdan et al. 2012):
+/// (M_t - lambda S_0) P' = M_t P with the stiffness S_0 of the input mesh and the mass M_t of
+/// the current one. Unlike CGAL's smooth_shape it does not rescale unless `restore_volume`.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Smoothing_report smooth_conformal_flow(TriangleMesh& tm, double lambda,
+                                       const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return internal::smooth_mesh<ConcurrencyTag>(Smoothing_scheme::conformal, tm, lambda, np);
+}
+
+/// @brief returns the explicit scheme's stability bound 2 / mu_max for the operator of `tm`
+/// (free vertices only: boundary and `vertex_is_constrained_map`). Named parameters:
+/// `laplacian`, `vertex_area`, `vertex_point_map`, `vertex_index_map`, `vertex_is_constrained_map`.
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  Laplacian_pencil pencil;
+  const Laplacian lap = internal::choose_laplacian(np);
+  const Vertex_area area = internal::choose_vertex_area(np);
+  internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil);
+  if(lap == Laplacian::cotangent) internal::require_positive_mass(pencil.mass, area);
+  std::vector<char> free_mask(mesh.vertices.size());
+  for(std::size_t i = 0; i < free_mask.size(); ++i) free_mask[i] = !mesh.topology.on_boundary[i];
+  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
+    auto vcm = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_is_constrained);
+    for(std::size_t i = 0; i < free_mask.size(); ++i)
+      if(get(vcm, mesh.vertices[i])) free_mask[i] = 0;
+  }
+  const double mu = internal::largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
+  return mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+}
+
+/// @brief returns the mean edge length of `tm` (each edge once). Named parameters:
+/// `vertex_point_map`, `vertex_index_map`.
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+double mean_edge_length(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  return internal::mean_edge_length(mesh.topology, mesh.positions);
+}
+
+/// @brief returns lambda = tau * (mean edge length)^2 for the cotangent Laplacian, and tau
+/// itself for the uniform one (whose lambda is already dimensionless). tau ~ 1 is one mean
+/// edge length squared of diffusion per step on any mesh, whatever its size.
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+double scale_free_time_step(const TriangleMesh& tm, double tau,
+                            const NamedParameters& np = CGAL::parameters::default_values())
+{
+  if(internal::choose_laplacian(np) == Laplacian::uniform) return tau;
+  const double h = mean_edge_length(tm, np);
+  return tau * h * h;
+}
+
+} // namespace lapmesh
+
+#endif
