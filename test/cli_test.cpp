@@ -1,0 +1,181 @@
+// End-to-end tests of `lapmesh curvature`: outputs against the library, the SPEC's formats,
+// and every bad input (one stderr line naming the file, non-zero exit, no output file).
+#include "test_helpers.h"
+
+#include <lapmesh/curvature.h>
+#include <lapmesh/io.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+using namespace lapmesh_test;
+
+namespace {
+
+struct Cli_run
+{
+  int status;
+  std::string out, err;
+};
+
+std::string tmp(const std::string& name) { return std::string(LAPMESH_TEST_TMP) + "/cli_" + name; }
+
+std::string slurp(const std::string& path)
+{
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+Cli_run lapmesh_cli(const std::string& args)
+{
+  const std::string out = tmp("stdout.txt"), err = tmp("stderr.txt");
+  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " > " + out + " 2> " + err).c_str());
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, slurp(out), slurp(err)};
+}
+
+std::size_t count_lines(const std::string& s) { return std::size_t(std::count(s.begin(), s.end(), '\n')); }
+
+std::string write_mesh_file(const std::string& name, const lapmesh::Triangle_soup& soup)
+{
+  const Mesh m = to_mesh(soup);
+  const auto [P, tris] = lapmesh::io::mesh_arrays(m);
+  lapmesh::io::write_mesh(tmp(name), P, tris);
+  return tmp(name);
+}
+
+} // namespace
+
+TEST(Cli, CurvatureCsvMatchesTheLibraryToSeventeenDigits)
+{
+  const std::string in = write_mesh_file("torus.off", lapmesh::torus(30, 12));
+  for(const char* lap : {"uniform", "cotangent"})
+    for(const char* area : {"barycentric", "mixed"}) {
+      const std::string out = tmp("torus.csv");
+      std::remove(out.c_str());
+      const Cli_run r = lapmesh_cli("curvature " + in + " -o " + out + " --laplacian " + lap + " --area " + area + " -q");
+      ASSERT_EQ(r.status, 0) << r.err;
+      EXPECT_EQ(r.out, "");  // -q
+      Mesh m;
+      lapmesh::io::read_triangle_mesh(in, m);
+      const auto c = lapmesh::vertex_curvatures(
+        m, lapmesh::parameters::laplacian(*lapmesh::parse_laplacian(lap), lapmesh::parameters::vertex_area(*lapmesh::parse_vertex_area(area))));
+      std::istringstream csv(slurp(out));
+      std::string line;
+      std::getline(csv, line);
+      EXPECT_EQ(line, "vertex,mean,gaussian,k1,k2");
+      Eigen::Index rows = 0;
+      while(std::getline(csv, line)) {
+        std::istringstream fields(line);
+        std::string f;
+        std::vector<std::string> cols;
+        while(std::getline(fields, f, ',')) cols.push_back(f);
+        ASSERT_EQ(cols.size(), 5u);
+        EXPECT_EQ(std::stol(cols[0]), rows);
+        EXPECT_EQ(std::stod(cols[1]), c.mean[rows]);  // 17 significant digits: exact
+        EXPECT_EQ(std::stod(cols[2]), c.gaussian[rows]);
+        EXPECT_EQ(std::stod(cols[3]), c.k1[rows]);
+        EXPECT_EQ(std::stod(cols[4]), c.k2[rows]);
+        ++rows;
+      }
+      EXPECT_EQ(rows, c.mean.size());
+    }
+}
+
+TEST(Cli, CurvaturePlyAndCoffOutputs)
+{
+  const std::string in = write_mesh_file("sphere.obj", lapmesh::icosphere(2, 2.0));
+  Cli_run r = lapmesh_cli("curvature " + in + " -o " + tmp("sphere.ply") + " --area mixed --quantity gaussian --colormap viridis");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("162 vertices"), std::string::npos) << r.out;
+  const std::string ply = slurp(tmp("sphere.ply"));
+  for(const char* prop : {"property double mean", "property double gaussian", "property double k1", "property double k2",
+                          "property uchar red", "element vertex 162", "element face 320"})
+    EXPECT_NE(ply.find(prop), std::string::npos) << prop;
+  r = lapmesh_cli("curvature " + in + " -o " + tmp("sphere.off") + " --range 0:1 --colormap gray --area mixed");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string off = slurp(tmp("sphere.off"));
+  EXPECT_EQ(off.rfind("COFF\n162 320 0\n", 0), 0u);
+  // H = 0.5 on this sphere (mixed area), range [0, 1] in gray: mid-grey (barycentric would
+  // give 145 here: the 14% error at the valence-5 vertex 0)
+  std::istringstream lines(off);
+  std::string line;
+  std::getline(lines, line);
+  std::getline(lines, line);
+  std::getline(lines, line);
+  double x, y, z;
+  int red, green, blue, alpha;
+  std::istringstream(line) >> x >> y >> z >> red >> green >> blue >> alpha;
+  EXPECT_NEAR(red, 128, 4);
+  EXPECT_EQ(alpha, 255);
+}
+
+TEST(Cli, HelpForEverySubcommandAndVersion)
+{
+  EXPECT_EQ(lapmesh_cli("--help").status, 0);
+  const Cli_run r = lapmesh_cli("curvature --help");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("--laplacian"), std::string::npos);
+  EXPECT_NE(r.out.find("not scale-correct"), std::string::npos);
+  EXPECT_NE(lapmesh_cli("--version").out.find("lapmesh"), std::string::npos);
+}
+
+TEST(Cli, BadInputsGiveOneLineNamingTheFileAndNoOutput)
+{
+  const std::string good = write_mesh_file("good.off", lapmesh::icosphere(1));
+  auto file = [](const std::string& name, const std::string& text) {
+    std::ofstream(tmp(name), std::ios::binary) << text;
+    return tmp(name);
+  };
+  const std::string tri = "0 0 0\n1 0 0\n0 1 0\n";
+  struct Case
+  {
+    std::string args, file_in_message, problem;
+  };
+  const std::string out = tmp("never_written.csv");
+  const std::vector<Case> cases = {
+    {tmp("missing.off"), tmp("missing.off"), "no such file"},
+    {file("empty.off", ""), tmp("empty.off"), "empty file"},
+    {file("trunc.off", "OFF\n3 1 0\n0 0 0\n"), tmp("trunc.off"), "truncated"},
+    {file("counts.off", "OFF\n-3 1 0\n"), tmp("counts.off"), "bad counts"},
+    {file("range.off", "OFF\n3 1 0\n" + tri + "3 0 1 9\n"), tmp("range.off"), "out of range"},
+    {file("nan.off", "OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"), tmp("nan.off"), "vertex 1 has a non-finite"},
+    {file("zero.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n"), tmp("zero.off"), "face 0 has zero area"},
+    {file("isolated.off", "OFF\n4 1 0\n" + tri + "9 9 9\n3 0 1 2\n"), tmp("isolated.off"), "vertex 3 is in no face"},
+    {file("nonmanifold.off", "OFF\n5 3 0\n0 0 0\n1 0 0\n0 1 0\n0 -1 0\n0 0 1\n3 0 1 2\n3 1 0 3\n3 0 1 4\n"),
+     tmp("nonmanifold.off"), "non-manifold"},
+    {file("format.xyz", "1 2 3\n"), tmp("format.xyz"), "unsupported mesh format"},
+  };
+  for(const Case& c : cases) {
+    const Cli_run r = lapmesh_cli("curvature " + c.args + " -o " + out);
+    EXPECT_NE(r.status, 0) << c.args;
+    EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+    EXPECT_NE(r.err.find(c.file_in_message), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(c.problem), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
+  }
+  // usage errors: unknown option, bad values, bad output format
+  for(const std::string& args : {"curvature " + good + " -o " + out + " --bogus",
+                                 "curvature " + good + " -o " + out + " --laplacian cotan",
+                                 "curvature " + good + " -o " + out + " --range 2:1",
+                                 "curvature " + good + " -o " + tmp("x.stl"),
+                                 "curvature " + good, std::string("frobnicate")}) {
+    const Cli_run r = lapmesh_cli(args);
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_EQ(count_lines(r.err), 1u) << args << ": " << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out)) << args;
+  }
+  // a failure never clobbers an existing output file
+  std::ofstream(out) << "keep me\n";
+  EXPECT_NE(lapmesh_cli("curvature " + tmp("zero.off") + " -o " + out).status, 0);
+  EXPECT_EQ(slurp(out), "keep me\n");
+  std::remove(out.c_str());
+}
+
+TEST(Cli, RealMeshFromCgalDataSet)
+{
+  const Cli_run r = lapmesh_cli("curvature " + cgal_mesh("cow.off") + " -o " + tmp("cow.csv") + " --area mixed");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("2904 vertices, 5804 faces"), std::string::npos) << r.out;
+  EXPECT_EQ(count_lines(slurp(tmp("cow.csv"))), 2905u);
+}
