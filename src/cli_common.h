@@ -41,6 +41,8 @@ lapmesh::Vertex_area area_from(const std::string& value);
 
 /// Subcommand registration (one function per cmd_*.cpp file).
 void register_curvature(CLI::App& app);
+void register_spectrum(CLI::App& app);
+void register_reconstruct(CLI::App& app);
 void register_smooth(CLI::App& app);
 void register_noise(CLI::App& app);
 

@@ -14,6 +14,8 @@ int main(int argc, char** argv)
   app.set_version_flag("--version", "lapmesh 0.1.0");
   app.require_subcommand(1);
   lapmesh_cli::register_curvature(app);
+  lapmesh_cli::register_spectrum(app);
+  lapmesh_cli::register_reconstruct(app);
   lapmesh_cli::register_smooth(app);
   lapmesh_cli::register_noise(app);
 

@@ -1,0 +1,301 @@
+// lapmesh — the eigen-solver behind Spectral_basis: the k smallest eigenpairs of the
+// symmetric pencil -S phi = lambda M phi with M diagonal and positive.
+//
+// Method. With M diagonal the pencil is the standard symmetric problem
+//   A y = lambda y,  A = M^-1/2 (-S) M^-1/2,  phi = M^-1/2 y,
+// so Euclidean-orthonormal y give M-orthonormal phi. Spectra's SymEigsShiftSolver runs
+// implicitly restarted Lanczos on (A - sigma I)^-1 = M^1/2 K^-1 M^1/2 with
+// K = -S - sigma M, factorised once by a sparse Cholesky (Eigen's SimplicialLLT by default,
+// CHOLMOD when LAPMESH_HAS_CHOLMOD is defined and asked for). Every Lanczos step is one
+// pair of triangular solves; the B-inner products of the generalized mode disappear.
+//
+// Shift. sigma = -shift_factor / sum(M) (default shift_factor = 1e-2), i.e. slightly below
+// zero on the scale of the smallest non-zero eigenvalue (lambda_1 ~ 25 / area on a sphere-like
+// surface): K is then symmetric positive definite even on closed meshes, where -S is
+// singular, and the eigenvalues nearest to sigma are the smallest ones.
+//
+// Completeness. Krylov solvers can drop a member of a repeated eigenvalue. The solver asks
+// for k + extra pairs, picks tau in the first spectral gap at or above lambda_{k-1}, and
+// counts the eigenvalues below tau exactly by Sylvester's law of inertia: the number of
+// negative pivots of the LDL^T factorisation of -S - tau M (same pattern: the symbolic
+// analysis is reused). A mismatch triggers a retry with more extra pairs, then a
+// Numerical_error: never a silent partial basis.
+#ifndef LAPMESH_INTERNAL_SPECTRAL_SOLVER_H
+#define LAPMESH_INTERNAL_SPECTRAL_SOLVER_H
+
+#include <lapmesh/errors.h>
+
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#ifdef LAPMESH_HAS_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
+
+#include <Spectra/SymEigsShiftSolver.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace lapmesh {
+
+/// The sparse Cholesky factorisation used by the spectral solver.
+enum class Sparse_cholesky {
+  simplicial,  ///< Eigen's SimplicialLLT (AMD ordering); always available; default
+  cholmod      ///< SuiteSparse CHOLMOD (needs LAPMESH_HAS_CHOLMOD and linking cholmod)
+};
+
+/// What the spectral solver is doing, for progress reports.
+struct Spectral_progress
+{
+  const char* stage;       ///< "factorising", "lanczos", "checking completeness"
+  long long operations;    ///< shift-invert solves so far (in the current attempt)
+  int attempt;             ///< 1 for the first run; more after a completeness retry
+  double elapsed_seconds;  ///< since the solve started
+};
+
+/// Options of the spectral solver (filled from named parameters by Spectral_basis).
+struct Spectral_options
+{
+  double tolerance = 1e-10;        ///< Spectra's relative convergence tolerance
+  int max_restarts = 1000;         ///< Lanczos restarts per attempt
+  int extra = -1;                  ///< extra pairs for the completeness check; -1: max(6, k/10)
+  double shift_factor = 1e-2;      ///< sigma = -shift_factor / sum(M)
+  bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
+  Sparse_cholesky cholesky = Sparse_cholesky::simplicial;
+  int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
+  std::function<void(const Spectral_progress&)> progress;  ///< optional
+};
+
+/// The computed eigenpairs: values ascending, vectors M-orthonormal (one per column).
+struct Spectral_pairs
+{
+  Eigen::VectorXd values;
+  Eigen::MatrixXd vectors;
+  double shift = 0;           ///< sigma used by the shift-invert solver (0 for the dense path)
+  long long operations = 0;   ///< shift-invert solves, all attempts
+  int attempts = 0;
+  bool dense = false;
+};
+
+namespace internal {
+
+/// y = M^1/2 K^-1 M^1/2 x, the shift-invert operator of the standardised problem.
+template <typename Factor>
+class Spectral_shift_invert_op
+{
+public:
+  using Scalar = double;
+  Spectral_shift_invert_op(const Factor& f, const Eigen::VectorXd& sqrt_mass,
+                           const std::function<void(long long)>& on_op)
+    : m_factor(f), m_sqrt_mass(sqrt_mass), m_b(sqrt_mass.size()), m_on_op(on_op)
+  {}
+  Eigen::Index rows() const { return m_sqrt_mass.size(); }
+  Eigen::Index cols() const { return m_sqrt_mass.size(); }
+  void set_shift(double) {}
+  void perform_op(const double* x_in, double* y_out) const
+  {
+    const Eigen::Index n = m_sqrt_mass.size();
+    Eigen::Map<const Eigen::VectorXd> x(x_in, n);
+    Eigen::Map<Eigen::VectorXd> y(y_out, n);
+    m_b = m_sqrt_mass.cwiseProduct(x);
+    y = m_factor.solve(m_b);
+    y.array() *= m_sqrt_mass.array();
+    ++m_ops;
+    if(m_on_op) m_on_op(m_ops);
+  }
+  long long operations() const { return m_ops; }
+
+private:
+  const Factor& m_factor;
+  const Eigen::VectorXd& m_sqrt_mass;
+  mutable Eigen::VectorXd m_b;
+  mutable long long m_ops = 0;
+  const std::function<void(long long)>& m_on_op;
+};
+
+/// Number of eigenvalues of -S phi = lambda M phi strictly below tau (Sylvester's inertia).
+inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+                                            double tau,
+                                            Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>& ldlt,
+                                            bool analysed)
+{
+  Eigen::SparseMatrix<double> K = minus_S;
+  K.diagonal() -= tau * mass;
+  if(!analysed) ldlt.analyzePattern(K);
+  ldlt.factorize(K);
+  if(ldlt.info() != Eigen::Success)
+    throw Numerical_error("spectral completeness check: the LDL^T factorisation of -S - tau M failed (tau = " +
+                          std::to_string(tau) + ")");
+  return (ldlt.vectorD().array() < 0).count();
+}
+
+template <typename Factor>
+void factorise_or_throw(Factor& f, const Eigen::SparseMatrix<double>& K)
+{
+  f.compute(K);
+  if(f.info() != Eigen::Success)
+    throw Numerical_error("spectral solver: the Cholesky factorisation of -S - sigma M failed "
+                          "(the pencil is not positive semidefinite, or M is not positive)");
+}
+
+inline Spectral_pairs dense_smallest_eigenpairs(const Eigen::SparseMatrix<double>& minus_S,
+                                                const Eigen::VectorXd& mass, Eigen::Index m)
+{
+  const Eigen::VectorXd isq = mass.cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd A = isq.asDiagonal() * Eigen::MatrixXd(minus_S) * isq.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(A);
+  if(es.info() != Eigen::Success) throw Numerical_error("spectral solver: the dense eigen-solver did not converge");
+  Spectral_pairs out;
+  out.values = es.eigenvalues().head(m);
+  out.vectors = isq.asDiagonal() * es.eigenvectors().leftCols(m);
+  out.dense = true;
+  out.attempts = 1;
+  return out;
+}
+
+/// One Lanczos run for m pairs with the factor of K = -S - sigma M.
+template <typename Factor>
+Spectral_pairs lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
+                           const Spectral_options& opt, const std::function<void(long long)>& on_op)
+{
+  const Eigen::Index n = sqrt_mass.size();
+  Spectral_shift_invert_op<Factor> op(factor, sqrt_mass, on_op);
+  const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(2 * m + 1, m + 20));
+  Spectra::SymEigsShiftSolver<Spectral_shift_invert_op<Factor>> eigs(op, m, ncv, sigma);
+  eigs.init();
+  eigs.compute(Spectra::SortRule::LargestMagn, opt.max_restarts, opt.tolerance, Spectra::SortRule::SmallestAlge);
+  if(eigs.info() != Spectra::CompInfo::Successful)
+    throw Numerical_error("spectral solver: Lanczos did not converge to " + std::to_string(m) + " eigenpairs in " +
+                          std::to_string(opt.max_restarts) + " restarts (tolerance " +
+                          std::to_string(opt.tolerance) + "); raise number_of_iterations or the tolerance");
+  Spectral_pairs out;
+  const Eigen::VectorXd vals = eigs.eigenvalues();
+  const Eigen::MatrixXd Y = eigs.eigenvectors();
+  if(vals.size() < m) throw Numerical_error("spectral solver: fewer converged eigenpairs than requested");
+  std::vector<Eigen::Index> order(std::size_t(vals.size()));
+  std::iota(order.begin(), order.end(), Eigen::Index(0));
+  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return vals[a] < vals[b]; });
+  out.values.resize(vals.size());
+  out.vectors.resize(n, vals.size());
+  for(Eigen::Index j = 0; j < vals.size(); ++j) {
+    out.values[j] = vals[order[std::size_t(j)]];
+    out.vectors.col(j) = Y.col(order[std::size_t(j)]).cwiseQuotient(sqrt_mass);
+  }
+  out.operations = op.operations();
+  out.shift = sigma;
+  return out;
+}
+
+/// The end of the cluster of lambda_{k-1}: the first j >= k-1 with a relative gap to
+/// lambda_{j+1}; -1 when the cluster reaches the last computed value.
+inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
+{
+  const double scale = std::max(std::abs(v[v.size() - 1]), 1e-300);
+  for(Eigen::Index j = k - 1; j + 1 < v.size(); ++j)
+    if(v[j + 1] - v[j] > 1e-6 * std::max(std::abs(v[j + 1]), 1e-6 * scale)) return j;
+  return -1;
+}
+
+template <typename Factor>
+Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+                                        Eigen::Index k, const Spectral_options& opt)
+{
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const Eigen::Index n = mass.size();
+  auto elapsed = [&] { return std::chrono::duration<double>(clock::now() - t0).count(); };
+  int attempt = 1;
+  auto report = [&](const char* stage, long long ops) {
+    if(opt.progress) opt.progress(Spectral_progress{stage, ops, attempt, elapsed()});
+  };
+
+  Eigen::Index extra = opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
+  // Small problems, or nearly the whole spectrum: Krylov needs m < n, use a dense solver.
+  if(k + extra >= n / 2 && n <= opt.dense_limit) {
+    report("dense eigen-solver", 0);
+    return dense_smallest_eigenpairs(minus_S, mass, std::min<Eigen::Index>(n, k + extra));
+  }
+  if(k >= n - 1)
+    throw Numerical_error("spectral solver: k = " + std::to_string(k) + " needs the dense solver, which is limited to " +
+                          std::to_string(opt.dense_limit) + " vertices");
+
+  const double sigma = -opt.shift_factor / mass.sum();
+  const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
+  Eigen::SparseMatrix<double> K = minus_S;
+  K.diagonal() -= sigma * mass;
+  report("factorising", 0);
+  Factor factor;
+  factorise_or_throw(factor, K);
+  K = Eigen::SparseMatrix<double>();
+
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt;
+  bool analysed = false;
+  long long total_ops = 0;
+  const std::function<void(long long)> on_op = [&](long long ops) {
+    if(opt.progress && ops % 10 == 0) report("lanczos", ops);
+  };
+  for(;; ++attempt) {
+    const Eigen::Index m = std::min<Eigen::Index>(k + extra, n - 2);
+    Spectral_pairs pairs = lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op);
+    total_ops += pairs.operations;
+    pairs.operations = total_ops;
+    pairs.attempts = attempt;
+    if(!opt.check_completeness) return pairs;
+
+    const Eigen::Index j = cluster_end(pairs.values, k);
+    if(j >= 0) {
+      report("checking completeness", total_ops);
+      const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
+      const Eigen::Index below = count_eigenvalues_below(minus_S, mass, tau, ldlt, analysed);
+      analysed = true;
+      if(below == j + 1) {
+        pairs.values.conservativeResize(j + 1);
+        pairs.vectors.conservativeResize(Eigen::NoChange, j + 1);
+        return pairs;
+      }
+      if(below < j + 1)
+        throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(below) +
+                              " below tau, " + std::to_string(j + 1) + " computed)");
+    }
+    // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
+    // the computed pairs: ask for more.
+    if(attempt >= 4 || m >= n - 2)
+      throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
+                            " smallest eigenpairs (repeated eigenvalues missed after " + std::to_string(attempt) +
+                            " attempts)");
+    extra = 2 * extra + 4;
+  }
+}
+
+inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
+                                          Eigen::Index k, const Spectral_options& opt)
+{
+  const Eigen::Index n = mass.size();
+  if(k < 1 || k > n)
+    throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
+                                std::to_string(n) + "]");
+  if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
+  const Eigen::SparseMatrix<double> minus_S = -stiffness;
+  if(opt.cholesky == Sparse_cholesky::cholmod) {
+#ifdef LAPMESH_HAS_CHOLMOD
+    return smallest_eigenpairs_with<Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower>>(minus_S, mass,
+                                                                                                        k, opt);
+#else
+    throw std::invalid_argument("Sparse_cholesky::cholmod requested, but lapmesh was compiled without "
+                                "LAPMESH_HAS_CHOLMOD");
+#endif
+  }
+  return smallest_eigenpairs_with<Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>(minus_S, mass, k, opt);
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif

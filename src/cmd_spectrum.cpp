@@ -1,0 +1,116 @@
+// lapmesh spectrum IN -o OUT.csv -k K: the k smallest Laplace–Beltrami eigenvalues.
+#include "cli_common.h"
+
+#include <lapmesh/io.h>
+#include <lapmesh/spectral_reconstruction.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include <unistd.h>
+
+namespace lapmesh_cli {
+
+// Shared with cmd_reconstruct.cpp (which declares them too): -k parsing with the SPEC's
+// one-line error, and the progress line shown only when stderr is a terminal.
+long long spectral_k_from(const std::string& input, const std::string& text, long long n);
+std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer();
+void clear_progress_line();
+
+namespace {
+
+struct Spectrum_options
+{
+  std::string input, output, laplacian = "cotangent", area = "barycentric", k;
+  bool quiet = false;
+};
+
+void run(const Spectrum_options& o)
+{
+  check_output_path(o.output, {"csv"});
+  const Mesh mesh = load_mesh(o.input);
+  const long long n = (long long)num_vertices(mesh);
+  const long long k = spectral_k_from(o.input, o.k, n);
+  lapmesh::Spectral_basis basis;
+  try {
+    basis = lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
+      mesh, k,
+      lapmesh::parameters::spectral_progress(
+        spectral_progress_printer(),
+        lapmesh::parameters::vertex_area(area_from(o.area), lapmesh::parameters::laplacian(laplacian_from(o.laplacian)))));
+  } catch(const std::exception& e) {
+    clear_progress_line();
+    throw Failure(o.input + ": " + e.what());
+  }
+  clear_progress_line();
+  try {
+    lapmesh::io::write_atomically(o.output, [&](std::ostream& os) {
+      os << "index,eigenvalue\n";
+      for(long long i = 0; i < k; ++i) {
+        os << i << ',';
+        lapmesh::io::put_double(os, basis.eigenvalues()[i]);
+        os << '\n';
+      }
+    });
+  } catch(const std::exception& e) {
+    throw Failure(o.output + ": " + e.what());
+  }
+  if(!o.quiet)
+    std::cout << o.input << ": " << n << " vertices; " << k << " smallest eigenvalues (" << o.laplacian << ", "
+              << o.area << " area) in [" << basis.eigenvalues()[0] << ", " << basis.eigenvalues()[k - 1]
+              << "]; wrote " << o.output << '\n';
+}
+
+} // namespace
+
+long long spectral_k_from(const std::string& input, const std::string& text, long long n)
+{
+  long long k = 0;
+  std::size_t used = 0;
+  try {
+    k = std::stoll(text, &used);
+  } catch(const std::exception&) {
+    used = 0;
+  }
+  if(used == 0 || used != text.size())
+    throw Failure(input + ": -k '" + text + "' is not an integer (expected 1 <= k <= " + std::to_string(n) +
+                  ", the number of vertices)");
+  if(k < 1 || k > n)
+    throw Failure(input + ": -k " + text + " is out of range: expected 1 <= k <= " + std::to_string(n) +
+                  " (the number of vertices)");
+  return k;
+}
+
+std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
+{
+  if(!::isatty(2)) return {};
+  return [](const lapmesh::Spectral_progress& p) {
+    std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
+                 p.elapsed_seconds);
+    std::fflush(stderr);
+  };
+}
+
+void clear_progress_line()
+{
+  if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
+}
+
+void register_spectrum(CLI::App& app)
+{
+  auto o = std::make_shared<Spectrum_options>();
+  CLI::App* cmd = app.add_subcommand("spectrum", "the k smallest eigenvalues of -S phi = lambda M phi");
+  cmd->footer("Output: .csv with the header index,eigenvalue and k rows, ascending, 17 significant digits.\n"
+              "lambda_0 ~ 0 once per connected component; on a sphere of radius r, l(l+1)/r^2 with\n"
+              "multiplicity 2l+1. Progress goes to stderr when it is a terminal.\n");
+  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
+  cmd->add_option("-o,--output", o->output, "output file (.csv)")->required();
+  cmd->add_option("-k", o->k, "number of eigenvalues, 1 <= k <= number of vertices")->required();
+  add_laplacian_option(*cmd, o->laplacian);
+  add_area_option(*cmd, o->area);
+  cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
+  cmd->callback([o] { run(*o); });
+}
+
+} // namespace lapmesh_cli

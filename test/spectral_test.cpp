@@ -1,0 +1,281 @@
+// Spectral basis: analytic sphere eigenvalues and multiplicities, M-orthonormality, one zero
+// eigenvalue per component, exact reconstruction with k = n, error decreasing in k on a real
+// mesh, uniform Laplacian, completeness, save/load, and the CLI's errors for a bad -k.
+#include "test_helpers.h"
+
+#include <lapmesh/io.h>
+#include <lapmesh/spectral_reconstruction.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace lapmesh_test;
+namespace LP = lapmesh::parameters;
+
+namespace {
+
+double bbox_diagonal(const Eigen::MatrixXd& P)
+{
+  return (P.colwise().maxCoeff() - P.colwise().minCoeff()).norm();
+}
+
+Eigen::MatrixXd positions_of(const Mesh& m)
+{
+  return lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values()).positions;
+}
+
+double m_orthonormality_error(const lapmesh::Spectral_basis& b)
+{
+  const Eigen::MatrixXd G = b.eigenvectors().transpose() * b.mass().asDiagonal() * b.eigenvectors();
+  return (G - Eigen::MatrixXd::Identity(G.rows(), G.cols())).cwiseAbs().maxCoeff();
+}
+
+const lapmesh::Spectral_basis& sphere_basis()
+{
+  static const lapmesh::Spectral_basis b =
+    lapmesh::Spectral_basis::compute(to_mesh(lapmesh::icosphere(5, 1.5)), 16, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  return b;
+}
+
+} // namespace
+
+TEST(Spectral, SphereEigenvaluesAndMultiplicities)
+{
+  const double r = 1.5;
+  const auto& b = sphere_basis();
+  ASSERT_EQ(to_mesh(lapmesh::icosphere(5, r)).number_of_vertices(), 10242u);
+  ASSERT_GE(b.size(), 16);
+  EXPECT_NEAR(b.eigenvalues()[0], 0.0, 1e-8);
+  int i = 1;
+  for(int l = 1; l <= 3; ++l) {
+    const double exact = l * (l + 1) / (r * r);
+    for(int m = 0; m < 2 * l + 1; ++m, ++i) EXPECT_NEAR(b.eigenvalues()[i], exact, 0.02 * exact) << "l=" << l;
+  }
+  // The multiplicity is exactly 2l+1: the next value belongs to l = 4.
+  if(b.size() > 16) {
+    EXPECT_NEAR(b.eigenvalues()[16], 20.0 / (r * r), 0.02 * 20 / (r * r));
+  }
+  for(int j = 1; j < b.size(); ++j) EXPECT_LE(b.eigenvalues()[j - 1], b.eigenvalues()[j]);
+  // Between the groups of 2l+1, the basis edge never splits an eigenspace; inside one it does.
+  EXPECT_FALSE(b.splits_eigenspace(4));
+  EXPECT_FALSE(b.splits_eigenspace(9));
+}
+
+TEST(Spectral, MOrthonormalAndResidual)
+{
+  const auto& b = sphere_basis();
+  EXPECT_LT(m_orthonormality_error(b), 1e-8);
+  const Mesh m = to_mesh(lapmesh::icosphere(5, 1.5));
+  const auto pencil = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  for(int j = 0; j < b.size(); ++j) {
+    const Eigen::VectorXd res =
+      -(pencil.stiffness * b.eigenvectors().col(j)) - b.eigenvalues()[j] * pencil.mass.cwiseProduct(b.eigenvectors().col(j));
+    EXPECT_LT(res.norm(), 1e-7 * (1 + b.eigenvalues()[j])) << j;
+  }
+}
+
+TEST(Spectral, OneZeroEigenvaluePerComponent)
+{
+  // Three components: two spheres and a plane patch with boundary (Neumann condition).
+  auto soup = lapmesh::icosphere(3, 1.0);
+  auto add = [&](const lapmesh::Triangle_soup& s, double dx) {
+    const std::size_t off = soup.points.size();
+    for(auto p : s.points) soup.points.push_back({p[0] + dx, p[1], p[2]});
+    for(auto t : s.triangles) soup.triangles.push_back({int(t[0] + off), int(t[1] + off), int(t[2] + off)});
+  };
+  add(lapmesh::icosphere(3, 0.7), 5);
+  add(lapmesh::plane_patch(20, 0.1), -5);
+  const Mesh m = to_mesh(soup);
+  for(auto lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const auto b = lapmesh::Spectral_basis::compute(m, 8, LP::laplacian(lap));
+    const double scale = b.eigenvalues()[7];
+    EXPECT_LT(std::abs(b.eigenvalues()[0]), 1e-9 * scale);
+    EXPECT_LT(std::abs(b.eigenvalues()[2]), 1e-9 * scale);
+    EXPECT_GT(b.eigenvalues()[3], 1e-3 * scale);
+    EXPECT_LT(m_orthonormality_error(b), 1e-8);
+    EXPECT_TRUE(b.splits_eigenspace(1));  // zero eigenspace of dimension 3
+  }
+}
+
+TEST(Spectral, FullBasisReconstructsInput)
+{
+  const Mesh m = to_mesh(lapmesh::bumpy_sphere(2));
+  const Eigen::MatrixXd P = positions_of(m);
+  const Eigen::Index n = P.rows();
+  for(auto lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const auto b = lapmesh::Spectral_basis::compute(m, n, LP::laplacian(lap));
+    ASSERT_EQ(b.size(), n);
+    EXPECT_LT(m_orthonormality_error(b), 1e-8);
+    const double err = (b.reconstruct(P, n) - P).rowwise().norm().maxCoeff();
+    EXPECT_LT(err, 1e-8 * bbox_diagonal(P));
+  }
+}
+
+TEST(Spectral, ReconstructionErrorDecreasesOnRealMesh)
+{
+  Mesh m;
+  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), m);
+  const Eigen::MatrixXd P = positions_of(m);
+  const auto b = lapmesh::Spectral_basis::compute(m, 100);
+  EXPECT_LT(m_orthonormality_error(b), 1e-8);
+  double previous = 1e300;
+  for(Eigen::Index k : {1, 5, 10, 30, 100}) {
+    const Eigen::VectorXd w = b.mass();
+    const double err = std::sqrt(((b.reconstruct(P, k) - P).rowwise().squaredNorm().transpose() * w)(0) / w.sum());
+    EXPECT_LT(err, previous) << "k=" << k;
+    previous = err;
+  }
+  EXPECT_LT(previous, 0.02 * bbox_diagonal(P));
+  // k = 1 is the M-weighted centroid.
+  const Eigen::RowVector3d c = (b.mass().transpose() * P) / b.mass().sum();
+  EXPECT_LT((b.reconstruct(P, 1).row(0) - c).norm(), 1e-10 * bbox_diagonal(P));
+}
+
+TEST(Spectral, UniformLaplacianAgreesWithDenseSolve)
+{
+  // Krylov (shift-invert) against the dense solver on the same pencil.
+  const Mesh m = to_mesh(lapmesh::bumpy_sphere(3));
+  const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform));
+  lapmesh::Spectral_options krylov;
+  krylov.dense_limit = 0;
+  const auto a = lapmesh::Spectral_basis::from_pencil(pencil, 20, krylov);
+  const auto d = lapmesh::Spectral_basis::from_pencil(pencil, pencil.mass.size());
+  for(int j = 0; j < 20; ++j) EXPECT_NEAR(a.eigenvalues()[j], d.eigenvalues()[j], 1e-9 * (1 + d.eigenvalues()[j]));
+  // Same reconstruction at a k that does not split an eigenspace.
+  const Eigen::MatrixXd P = positions_of(m);
+  Eigen::Index k = 12;
+  while(d.splits_eigenspace(k)) ++k;  // the bumpy sphere is symmetric: skip repeated eigenvalues
+  ASSERT_LE(k, 20);
+  EXPECT_FALSE(a.splits_eigenspace(k));
+  EXPECT_LT((a.reconstruct(P, k) - d.reconstruct(P, k)).cwiseAbs().maxCoeff(), 1e-7 * bbox_diagonal(P));
+}
+
+TEST(Spectral, CompletenessOnHighlySymmetricSphere)
+{
+  // The icosphere has the icosahedral symmetry: large exactly repeated eigenvalues. Ask for
+  // k inside the l = 4 group (9 values from index 16): the held set must end past it.
+  const Mesh m = to_mesh(lapmesh::icosphere(4, 1.0));
+  lapmesh::Spectral_options opt;
+  opt.extra = 0;  // force the retry path
+  const auto pencil = lapmesh::laplacian_pencil(m);
+  const auto b = lapmesh::Spectral_basis::from_pencil(pencil, 18, opt);
+  ASSERT_GE(b.size(), 18);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  const double tau = b.eigenvalues()[b.size() - 1] * (1 + 1e-6);
+  const Eigen::SparseMatrix<double> mS = -pencil.stiffness;
+  EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, ldlt, false), b.size());
+}
+
+TEST(Spectral, SaveLoadRoundTripAndErrors)
+{
+  const auto& b = sphere_basis();
+  const std::string path = std::string(LAPMESH_TEST_TMP) + "/sphere.basis";
+  b.save(path);
+  const auto c = lapmesh::Spectral_basis::load(path);
+  EXPECT_EQ(c.size(), b.size());
+  EXPECT_EQ(c.requested(), 16);
+  EXPECT_EQ((c.eigenvectors() - b.eigenvectors()).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(c.vertex_area(), lapmesh::Vertex_area::mixed);
+  std::filesystem::resize_file(path, 100);
+  EXPECT_THROW(lapmesh::Spectral_basis::load(path), std::runtime_error);
+  EXPECT_THROW(b.reconstruct(Eigen::MatrixXd::Zero(10, 3), 3), std::invalid_argument);
+  EXPECT_THROW(b.reconstruct(Eigen::MatrixXd::Zero(b.num_vertices(), 3), b.size() + 1), std::invalid_argument);
+}
+
+TEST(Spectral, RefusesNonPositiveVoronoiArea)
+{
+  // A plane patch with strong jitter has obtuse triangles with negative Voronoi area.
+  const Mesh m = to_mesh(lapmesh::plane_patch(12, 0.45, 3));
+  const auto A = lapmesh::vertex_areas(m, LP::vertex_area(lapmesh::Vertex_area::voronoi));
+  if(A.minCoeff() > 0) GTEST_SKIP() << "no negative area on this patch";
+  EXPECT_THROW(lapmesh::Spectral_basis::compute(m, 5, LP::vertex_area(lapmesh::Vertex_area::voronoi)),
+               lapmesh::Mesh_error);
+}
+
+// ---- command line ------------------------------------------------------------------
+namespace {
+
+struct Cli_run
+{
+  int status;
+  std::string err;
+};
+
+Cli_run run_cli(const std::string& args)
+{
+  const std::string errfile = std::string(LAPMESH_TEST_TMP) + "/spectral_cli.err";
+  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " 2>" + errfile + " >/dev/null").c_str());
+  std::ifstream in(errfile);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
+}
+
+int count_lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
+
+std::string small_mesh()
+{
+  const std::string path = std::string(LAPMESH_TEST_TMP) + "/spectral_small.off";
+  const auto soup = lapmesh::icosphere(1, 1.0);  // 42 vertices
+  std::vector<std::array<std::size_t, 3>> tris;
+  for(const auto& t : soup.triangles) tris.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+  Eigen::MatrixXd P(soup.points.size(), 3);
+  for(std::size_t i = 0; i < soup.points.size(); ++i) P.row(Eigen::Index(i)) << soup.points[i][0], soup.points[i][1], soup.points[i][2];
+  lapmesh::io::write_mesh(path, P, tris);
+  return path;
+}
+
+} // namespace
+
+TEST(SpectralCli, BadKIsOneLineAndNoOutput)
+{
+  const std::string in = small_mesh();
+  for(const std::string cmd : {"spectrum", "reconstruct"}) {
+    const std::string out = std::string(LAPMESH_TEST_TMP) + "/bad_k." + (cmd == "spectrum" ? "csv" : "off");
+    for(const std::string k : {"0", "-3", "43", "1000"}) {
+      std::filesystem::remove(out);
+      const Cli_run r = run_cli(cmd + " " + in + " -o " + out + " -k " + k);
+      EXPECT_NE(r.status, 0) << cmd << " -k " << k;
+      EXPECT_EQ(count_lines(r.err), 1) << r.err;
+      EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("-k"), std::string::npos) << r.err;
+      EXPECT_FALSE(std::filesystem::exists(out)) << cmd << " -k " << k;
+    }
+  }
+}
+
+TEST(SpectralCli, SpectrumAndReconstructWork)
+{
+  const std::string in = small_mesh();
+  const std::string csv = std::string(LAPMESH_TEST_TMP) + "/ev.csv";
+  Cli_run r = run_cli("spectrum " + in + " -o " + csv + " -k 4");
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream f(csv);
+  std::string line;
+  std::getline(f, line);
+  EXPECT_EQ(line, "index,eigenvalue");
+  std::vector<double> ev;
+  while(std::getline(f, line)) ev.push_back(std::stod(line.substr(line.find(',') + 1)));
+  ASSERT_EQ(ev.size(), 4u);
+  EXPECT_NEAR(ev[0], 0, 1e-9);
+  EXPECT_NEAR(ev[1], 2.0, 0.2);  // coarse sphere: l = 1
+  EXPECT_NEAR(ev[3], ev[1], 1e-9 * ev[1]);
+
+  // k = n reproduces the input; --save-basis then --load-basis gives the same result.
+  const std::string out = std::string(LAPMESH_TEST_TMP) + "/rec.off", out2 = std::string(LAPMESH_TEST_TMP) + "/rec2.off";
+  const std::string basis = std::string(LAPMESH_TEST_TMP) + "/small.basis";
+  r = run_cli("reconstruct " + in + " -o " + out + " -k 42 --save-basis " + basis);
+  ASSERT_EQ(r.status, 0) << r.err;
+  Mesh a, b, c;
+  lapmesh::io::read_triangle_mesh(in, a);
+  lapmesh::io::read_triangle_mesh(out, b);
+  EXPECT_LT((positions_of(a) - positions_of(b)).cwiseAbs().maxCoeff(), 1e-8 * bbox_diagonal(positions_of(a)));
+  r = run_cli("reconstruct " + in + " -o " + out2 + " -k 5 --load-basis " + basis);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("warning"), std::string::npos) << "k = 5 splits the l = 2 eigenspace: " << r.err;
+  lapmesh::io::read_triangle_mesh(out2, c);
+  EXPECT_GT((positions_of(a) - positions_of(c)).cwiseAbs().maxCoeff(), 1e-3);
+}
