@@ -1,0 +1,91 @@
+// Operator assembly and curvatures on generated tori of ~10k, ~100k and 1M vertices.
+// Every timing starts from the raw Surface_mesh (extraction and topology included), as a
+// user calling the public function pays it. Run: operators_benchmark --benchmark_repetitions=3
+#include <lapmesh/curvature.h>
+#include <lapmesh/laplacian.h>
+#include <lapmesh/shapes.h>
+
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <map>
+
+namespace {
+
+using Mesh = CGAL::Surface_mesh<CGAL::Simple_cartesian<double>::Point_3>;
+namespace LP = lapmesh::parameters;
+
+// n x n torus grid: 100 -> 10k, 316 -> ~100k, 1000 -> 1M vertices; built once per size.
+const Mesh& torus_mesh(int n)
+{
+  static std::map<int, Mesh> cache;
+  auto it = cache.find(n);
+  if(it == cache.end()) {
+    Mesh m;
+    lapmesh::make_mesh(lapmesh::torus(n, n, 1.0, 0.4), m);
+    it = cache.emplace(n, std::move(m)).first;
+  }
+  return it->second;
+}
+
+template <typename Tag>
+void BM_cotangent_stiffness_mixed_mass(benchmark::State& state)
+{
+  const Mesh& m = torus_mesh(int(state.range(0)));
+  for(auto _ : state) {
+    auto pencil = lapmesh::laplacian_pencil<Tag>(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+    benchmark::DoNotOptimize(pencil.stiffness.valuePtr());
+  }
+  state.counters["vertices"] = double(num_vertices(m));
+}
+
+void BM_uniform_laplacian(benchmark::State& state)
+{
+  const Mesh& m = torus_mesh(int(state.range(0)));
+  for(auto _ : state) {
+    auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform));
+    benchmark::DoNotOptimize(pencil.stiffness.valuePtr());
+  }
+}
+
+template <typename Tag>
+void BM_all_curvatures(benchmark::State& state)
+{
+  const Mesh& m = torus_mesh(int(state.range(0)));
+  for(auto _ : state) {
+    auto c = lapmesh::vertex_curvatures<Tag>(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+    benchmark::DoNotOptimize(c.k2.data());
+  }
+}
+
+void BM_mean_curvature_only(benchmark::State& state)
+{
+  Mesh m = torus_mesh(int(state.range(0)));
+  auto H = m.add_property_map<Mesh::Vertex_index, double>("v:H").first;
+  for(auto _ : state) lapmesh::compute_mean_curvature(m, H, LP::vertex_area(lapmesh::Vertex_area::mixed));
+}
+
+void BM_extract_and_topology(benchmark::State& state)
+{
+  const Mesh& m = torus_mesh(int(state.range(0)));
+  for(auto _ : state) {
+    auto e = lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values());
+    benchmark::DoNotOptimize(e.topology.inner.data());
+  }
+}
+
+void sizes(benchmark::internal::Benchmark* b) { b->Arg(100)->Arg(316)->Arg(1000)->Unit(benchmark::kMillisecond); }
+
+} // namespace
+
+BENCHMARK(BM_extract_and_topology)->Apply(sizes);
+BENCHMARK(BM_uniform_laplacian)->Apply(sizes);
+BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Sequential_tag)->Apply(sizes);
+BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Parallel_if_available_tag)->Apply(sizes);
+BENCHMARK(BM_mean_curvature_only)->Apply(sizes);
+BENCHMARK_TEMPLATE(BM_all_curvatures, CGAL::Sequential_tag)->Apply(sizes);
+BENCHMARK_TEMPLATE(BM_all_curvatures, CGAL::Parallel_if_available_tag)->Apply(sizes);
+BENCHMARK_MAIN();
