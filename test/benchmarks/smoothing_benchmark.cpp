@@ -1,0 +1,106 @@
+// Smoothing benchmarks: 10 implicit iterations with re-assembly (100k, 250k, 1M vertices)
+// and 10 explicit iterations (operator built once, as in ANCHORS.md, and rebuilt) on 1M,
+// single- and multi-threaded. Meshes: generated tori (closed, genus 1) scaled to unit area.
+// Counters split the time into assembly, symbolic analysis, numeric factorisation and solves.
+//
+//   smoothing_benchmark --benchmark_filter=Implicit/250
+#include <lapmesh/laplacian_smoothing.h>
+#include <lapmesh/shapes.h>
+
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <benchmark/benchmark.h>
+
+#include <map>
+
+namespace {
+
+using Mesh = CGAL::Surface_mesh<CGAL::Simple_cartesian<double>::Point_3>;
+
+struct Arrays
+{
+  lapmesh::internal::Mesh_topology topology;
+  lapmesh::internal::Positions positions;
+};
+
+// nu x nv torus with ~square cells (nu / nv = R / r = 2.5), scaled to unit area.
+const Arrays& torus_arrays(int thousands)
+{
+  static std::map<int, Arrays> cache;
+  auto it = cache.find(thousands);
+  if(it != cache.end()) return it->second;
+  const int nv = int(std::lround(std::sqrt(thousands * 1000.0 / 2.5))), nu = int(std::lround(thousands * 1000.0 / nv));
+  const lapmesh::Triangle_soup soup = lapmesh::torus(nu, nv, 1.0, 0.4);
+  Arrays a;
+  std::vector<lapmesh::internal::Index> tris;
+  for(const auto& t : soup.triangles) tris.insert(tris.end(), t.begin(), t.end());
+  a.topology = lapmesh::internal::build_topology(lapmesh::internal::Index(soup.points.size()), std::move(tris));
+  a.positions.resize(Eigen::Index(soup.points.size()), 3);
+  for(std::size_t i = 0; i < soup.points.size(); ++i)
+    a.positions.row(Eigen::Index(i)) << soup.points[i][0], soup.points[i][1], soup.points[i][2];
+  const double area = 4 * M_PI * M_PI * 1.0 * 0.4;
+  a.positions /= std::sqrt(area);
+  return cache.emplace(thousands, std::move(a)).first->second;
+}
+
+void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_operator)
+{
+  const Arrays& a = torus_arrays(int(state.range(0)));
+  const bool parallel = state.range(1) != 0;
+  lapmesh::internal::Smoothing_settings s;
+  s.scheme = scheme;
+  s.iterations = 10;
+  s.fixed_operator = fixed_operator;
+  s.parallel = parallel;
+  const double h = lapmesh::internal::mean_edge_length(a.topology, a.positions);
+  s.lambda = scheme == lapmesh::Smoothing_scheme::explicit_euler ? 0.1 * h * h : 1.0 * h * h;
+  lapmesh::Smoothing_report total;
+  int runs = 0;
+  for(auto _ : state) {
+    state.PauseTiming();
+    lapmesh::internal::Positions P = a.positions;
+    state.ResumeTiming();
+    const auto r = lapmesh::internal::smooth_positions(a.topology, P, {}, s);
+    benchmark::DoNotOptimize(P.data());
+    total.assembly_seconds += r.assembly_seconds;
+    total.analysis_seconds += r.analysis_seconds;
+    total.factorization_seconds += r.factorization_seconds;
+    total.solve_seconds += r.solve_seconds;
+    ++runs;
+  }
+  state.counters["vertices"] = double(a.topology.num_vertices);
+  state.counters["assembly_s"] = total.assembly_seconds / runs;
+  state.counters["analysis_s"] = total.analysis_seconds / runs;
+  state.counters["factor_s"] = total.factorization_seconds / runs;
+  state.counters["solve_s"] = total.solve_seconds / runs;
+}
+
+void BM_Implicit(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::implicit_euler, false); }
+void BM_ExplicitFixedOperator(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, true); }
+void BM_ExplicitRebuilt(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, false); }
+
+// Public API on a Surface_mesh (extraction and write-back included).
+void BM_ImplicitSurfaceMesh(benchmark::State& state)
+{
+  const int thousands = int(state.range(0));
+  const int nv = int(std::lround(std::sqrt(thousands * 1000.0 / 2.5))), nu = int(std::lround(thousands * 1000.0 / nv));
+  Mesh input;
+  lapmesh::make_mesh(lapmesh::torus(nu, nv, 1.0, 0.4), input);
+  const double lambda = lapmesh::scale_free_time_step(input, 1.0);
+  for(auto _ : state) {
+    state.PauseTiming();
+    Mesh m = input;
+    state.ResumeTiming();
+    lapmesh::smooth_laplacian_implicit(m, lambda, CGAL::parameters::number_of_iterations(10));
+  }
+}
+
+} // namespace
+
+BENCHMARK(BM_Implicit)->ArgsProduct({{100, 250, 1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
+BENCHMARK(BM_ImplicitSurfaceMesh)->Arg(250)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_ExplicitFixedOperator)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_ExplicitRebuilt)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
+
+BENCHMARK_MAIN();

@@ -1,0 +1,410 @@
+// Smoothing and noise: mean curvature flow on a sphere against r(t)^2 = r0^2 - 4t, the
+// explicit stability bound against a dense eigen-solve, implicit steps against dense
+// Dirichlet solves, bitwise-fixed constraints, volume restoration, reproducible noise with
+// the right statistics, denoising, and the command line's refusal of bad lambda/iterations.
+#include "test_helpers.h"
+
+#include <lapmesh/laplacian_smoothing.h>
+#include <lapmesh/noise.h>
+#include <lapmesh/io.h>
+
+#include <CGAL/Polygon_mesh_processing/measure.h>
+
+#include <Eigen/Dense>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <sys/wait.h>
+
+using namespace lapmesh_test;
+namespace LP = lapmesh::parameters;
+
+namespace {
+
+Eigen::MatrixXd positions(const Mesh& m)
+{
+  Eigen::MatrixXd P(num_vertices(m), 3);
+  for(auto v : vertices(m)) P.row(v.idx()) << m.point(v).x(), m.point(v).y(), m.point(v).z();
+  return P;
+}
+
+Mesh jittered(lapmesh::Triangle_soup soup, double amount, unsigned seed)
+{
+  std::mt19937_64 rng(seed);
+  for(auto& p : soup.points)
+    for(double& c : p) c += amount * (double(rng() >> 11) / double(1ull << 53) - 0.5);
+  return to_mesh(soup);
+}
+
+double mean_squared_radius(const Mesh& m)
+{
+  const Eigen::MatrixXd P = positions(m);
+  const Eigen::RowVector3d c = P.colwise().mean();
+  double s = 0;
+  for(Eigen::Index i = 0; i < P.rows(); ++i) s += (P.row(i) - c).squaredNorm();
+  return s / double(P.rows());
+}
+
+// Dense reference of one implicit step with Dirichlet vertices:
+// (M - lambda S)_FF X_F = M_FF P_F + lambda S_FB P_B, X_B = P_B.
+Eigen::MatrixXd dense_implicit_step(const Eigen::MatrixXd& S, const Eigen::VectorXd& mass, const Eigen::MatrixXd& P,
+                                    double lambda, const std::vector<bool>& fixed)
+{
+  const int n = int(P.rows());
+  std::vector<int> F, B;
+  for(int i = 0; i < n; ++i) (fixed[i] ? B : F).push_back(i);
+  Eigen::MatrixXd A(F.size(), F.size()), rhs(F.size(), 3);
+  for(std::size_t a = 0; a < F.size(); ++a) {
+    for(std::size_t b = 0; b < F.size(); ++b) A(a, b) = -lambda * S(F[a], F[b]) + (a == b ? mass[F[a]] : 0.0);
+    rhs.row(a) = mass[F[a]] * P.row(F[a]);
+    for(int j : B) rhs.row(a) += lambda * S(F[a], j) * P.row(j);
+  }
+  const Eigen::MatrixXd X = A.ldlt().solve(rhs);
+  Eigen::MatrixXd out = P;
+  for(std::size_t a = 0; a < F.size(); ++a) out.row(F[a]) = X.row(a);
+  return out;
+}
+
+lapmesh::Triangle_soup bumpy_patch(int n)
+{
+  return lapmesh::height_field(n, [](double x, double y) { return 0.2 * std::sin(3 * x) * std::cos(2 * y); }, 0.3, 5);
+}
+
+} // namespace
+
+TEST(Smoothing, ImplicitCotangentFlowShrinksSphereLikeMeanCurvatureFlow)
+{
+  // x_t = L x = -2 H n with H = 1/r gives d(r^2)/dt = -4, so r(t)^2 = r0^2 - 4t.
+  for(lapmesh::Vertex_area area : {lapmesh::Vertex_area::barycentric, lapmesh::Vertex_area::mixed}) {
+    Mesh m = to_mesh(lapmesh::icosphere(4, 1.0));
+    const double r0sq = mean_squared_radius(m);
+    const double dt = 0.002;
+    const int steps = 25;  // t = 0.05: r^2 falls by 0.2 (20%)
+    const auto report = lapmesh::smooth_laplacian_implicit(
+      m, dt, LP::vertex_area(area).number_of_iterations(steps));
+    EXPECT_EQ(report.iterations, steps);
+    EXPECT_EQ(report.factorizations, steps);  // rebuilt operator: refactorised every iteration
+    const double expected = r0sq - 4.0 * dt * steps;
+    const double got = mean_squared_radius(m);
+    EXPECT_NEAR(got, expected, 0.02 * expected) << lapmesh::to_string(area);
+    // The sphere stays round: every vertex at the same radius to 1%.
+    const Eigen::MatrixXd P = positions(m);
+    const Eigen::RowVector3d c = P.colwise().mean();
+    for(Eigen::Index i = 0; i < P.rows(); ++i) ASSERT_NEAR((P.row(i) - c).squaredNorm(), got, 0.01 * got);
+  }
+}
+
+TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
+{
+  for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const Mesh m = jittered(lapmesh::icosphere(2), 0.05, 3);
+    const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lap));
+    const Eigen::MatrixXd S = Eigen::MatrixXd(pencil.stiffness);
+    const Eigen::VectorXd ism = pencil.mass.cwiseSqrt().cwiseInverse();
+    const Eigen::MatrixXd Ssym = -(ism.asDiagonal() * S * ism.asDiagonal());
+    const double mu_max = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Ssym).eigenvalues().maxCoeff();
+    const double bound = lapmesh::explicit_stability_bound(m, LP::laplacian(lap));
+    EXPECT_NEAR(bound, 2.0 / mu_max, 1e-7 * bound) << lapmesh::to_string(lap);
+    EXPECT_LE(bound, 2.0 / mu_max * (1 + 1e-12));  // on the safe side
+  }
+}
+
+TEST(Smoothing, ExplicitBlowsUpAboveTheBoundAndNotBelow)
+{
+  for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const Mesh input = jittered(lapmesh::icosphere(3), 0.02, 11);
+    const double bound = lapmesh::explicit_stability_bound(input, LP::laplacian(lap));
+    const double size0 = positions(input).cwiseAbs().maxCoeff();
+
+    Mesh below = input;
+    const auto rb = lapmesh::smooth_laplacian_explicit(
+      below, 0.95 * bound, LP::fixed_operator(true, LP::laplacian(lap)).number_of_iterations(400));
+    EXPECT_FALSE(rb.above_stability_bound);
+    EXPECT_NEAR(rb.stability_bound, bound, 1e-12 * bound);  // the bound reported is the one computed
+    EXPECT_LE(positions(below).cwiseAbs().maxCoeff(), size0 * (1 + 1e-9));
+
+    Mesh above = input;
+    bool diverged = false;
+    try {
+      const auto ra = lapmesh::smooth_laplacian_explicit(
+        above, 1.05 * bound, LP::fixed_operator(true, LP::laplacian(lap)).number_of_iterations(400));
+      EXPECT_TRUE(ra.above_stability_bound);
+      diverged = positions(above).cwiseAbs().maxCoeff() > 1e3 * size0;
+    } catch(const lapmesh::Numerical_error&) {
+      diverged = true;
+    }
+    EXPECT_TRUE(diverged) << lapmesh::to_string(lap);
+  }
+}
+
+TEST(Smoothing, UniformImplicitEqualsDenseInverse)
+{
+  const Mesh input = jittered(lapmesh::icosphere(2), 0.05, 2);
+  const auto pencil = lapmesh::laplacian_pencil(input, LP::laplacian(lapmesh::Laplacian::uniform));
+  const int n = int(num_vertices(input));
+  // Lu = D^-1 W, assembled independently from the adjacency.
+  Eigen::MatrixXd Lu = Eigen::MatrixXd::Zero(n, n);
+  for(auto v : vertices(input)) {
+    const double deg = double(degree(v, input));
+    for(auto w : vertices_around_target(halfedge(v, input), input)) Lu(v.idx(), w.idx()) += 1.0 / deg;
+    Lu(v.idx(), v.idx()) = -1.0;
+  }
+  const double lambda = 0.7;
+  Eigen::MatrixXd X = positions(input);
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+  for(int k = 0; k < 3; ++k) X = (I - lambda * Lu).partialPivLu().solve(X);
+  Mesh m = input;
+  const auto report = lapmesh::smooth_laplacian_implicit(m, lambda, LP::laplacian(lapmesh::Laplacian::uniform).number_of_iterations(3));
+  EXPECT_EQ(report.factorizations, 1);  // the uniform operator does not depend on positions
+  EXPECT_LE((positions(m) - X).cwiseAbs().maxCoeff(), 1e-12);
+  (void)pencil;
+}
+
+TEST(Smoothing, CotangentImplicitWithBoundaryAndConstraintsEqualsDenseDirichletSolve)
+{
+  for(bool fixed_operator : {false, true}) {
+    const Mesh input = to_mesh(bumpy_patch(9));
+    const int n = int(num_vertices(input));
+    auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), input);
+    std::vector<bool> fixed(n);
+    for(auto v : vertices(input)) {
+      const bool c = v.idx() % 7 == 3;
+      put(constrained, v, c);
+      fixed[v.idx()] = c || input.is_border(v);
+    }
+    const double lambda = 0.004;
+    Eigen::MatrixXd X = positions(input);
+    Mesh state = input;
+    for(int k = 0; k < 3; ++k) {
+      const auto pencil = lapmesh::laplacian_pencil(fixed_operator ? input : state);
+      X = dense_implicit_step(Eigen::MatrixXd(pencil.stiffness), lapmesh::vertex_areas(state), X, lambda, fixed);
+      for(auto v : vertices(state)) state.point(v) = Point(X(v.idx(), 0), X(v.idx(), 1), X(v.idx(), 2));
+    }
+    // (with a fixed operator the mass also stays that of the input)
+    if(fixed_operator) {
+      X = positions(input);
+      const auto pencil = lapmesh::laplacian_pencil(input);
+      for(int k = 0; k < 3; ++k)
+        X = dense_implicit_step(Eigen::MatrixXd(pencil.stiffness), pencil.mass, X, lambda, fixed);
+    }
+    Mesh m = input;
+    lapmesh::smooth_laplacian_implicit(
+      m, lambda, LP::fixed_operator(fixed_operator).number_of_iterations(3).vertex_is_constrained_map(constrained));
+    EXPECT_LE((positions(m) - X).cwiseAbs().maxCoeff(), 1e-12) << "fixed operator " << fixed_operator;
+    EXPECT_GT((positions(m) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);  // it did move
+  }
+}
+
+TEST(Smoothing, FixedVerticesNeverMoveBitwise)
+{
+  const Mesh input = to_mesh(bumpy_patch(15));
+  auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), input);
+  for(auto v : vertices(input)) put(constrained, v, v.idx() % 5 == 0);
+  for(lapmesh::Smoothing_scheme scheme : {lapmesh::Smoothing_scheme::explicit_euler, lapmesh::Smoothing_scheme::implicit_euler,
+                                          lapmesh::Smoothing_scheme::conformal})
+    for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+      Mesh m = input;
+      const auto np = LP::laplacian(lap).number_of_iterations(5).vertex_is_constrained_map(constrained);
+      const double lambda = scheme == lapmesh::Smoothing_scheme::explicit_euler
+                              ? 0.5 * lapmesh::explicit_stability_bound(m, np)
+                              : lapmesh::scale_free_time_step(m, 1.0, np);
+      if(scheme == lapmesh::Smoothing_scheme::explicit_euler) lapmesh::smooth_laplacian_explicit(m, lambda, np);
+      else if(scheme == lapmesh::Smoothing_scheme::implicit_euler) lapmesh::smooth_laplacian_implicit(m, lambda, np);
+      else lapmesh::smooth_conformal_flow(m, lambda, np);
+      int moved = 0;
+      for(auto v : vertices(m)) {
+        if(get(constrained, v) || m.is_border(v)) {
+          ASSERT_TRUE(m.point(v) == input.point(v)) << "vertex " << v.idx();  // bitwise
+        } else {
+          moved += !(m.point(v) == input.point(v));
+        }
+      }
+      EXPECT_GT(moved, 0);
+    }
+}
+
+TEST(Smoothing, VolumeRestorationKeepsVolumeAndCentroid)
+{
+  const Mesh input = to_mesh(lapmesh::bumpy_sphere(3, 0.1, 5.0));
+  const double V0 = CGAL::Polygon_mesh_processing::volume(input);
+  for(lapmesh::Smoothing_scheme scheme : {lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Smoothing_scheme::conformal}) {
+    Mesh plain = input, restored = input;
+    const double lambda = lapmesh::scale_free_time_step(input, 2.0);
+    if(scheme == lapmesh::Smoothing_scheme::implicit_euler) {
+      lapmesh::smooth_laplacian_implicit(plain, lambda, LP::default_values().number_of_iterations(10));
+      lapmesh::smooth_laplacian_implicit(restored, lambda, LP::restore_volume(true).number_of_iterations(10));
+    } else {
+      lapmesh::smooth_conformal_flow(plain, lambda, LP::default_values().number_of_iterations(10));
+      lapmesh::smooth_conformal_flow(restored, lambda, LP::restore_volume(true).number_of_iterations(10));
+    }
+    EXPECT_GT(std::abs(CGAL::Polygon_mesh_processing::volume(plain) - V0) / V0, 1e-2);
+    EXPECT_NEAR(CGAL::Polygon_mesh_processing::volume(restored), V0, 1e-9 * V0);
+  }
+}
+
+TEST(Noise, SameSeedSameNoiseDifferentSeedDifferentNoise)
+{
+  const Mesh input = to_mesh(lapmesh::icosphere(3));
+  for(auto dir : {lapmesh::Noise_direction::isotropic, lapmesh::Noise_direction::normal}) {
+    Mesh a = input, b = input, c = input;
+    lapmesh::add_noise(a, 0.1, LP::noise_direction(dir).random_seed(7));
+    lapmesh::add_noise(b, 0.1, LP::noise_direction(dir).random_seed(7));
+    lapmesh::add_noise(c, 0.1, LP::noise_direction(dir).random_seed(8));
+    EXPECT_EQ((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_GT((positions(a) - positions(c)).cwiseAbs().maxCoeff(), 1e-3);
+  }
+  // std::mt19937_64 is fixed by the standard: its 10000th output from the default seed.
+  std::mt19937_64 rng;
+  rng.discard(9999);
+  EXPECT_EQ(rng(), 9981545732273789042ull);
+}
+
+TEST(Noise, StatisticsMatchSigma)
+{
+  const Mesh input = to_mesh(lapmesh::icosphere(5));
+  double edge_sum = 0;
+  for(auto e : edges(input)) edge_sum += std::sqrt(CGAL::squared_distance(input.point(source(e, input)), input.point(target(e, input))));
+  const double mean_edge = edge_sum / double(num_edges(input));
+  const double level = 0.05;
+  {
+    Mesh m = input;
+    const double sigma = lapmesh::add_noise(m, level, CGAL::parameters::random_seed(3));
+    EXPECT_NEAR(sigma, level * mean_edge, 1e-12);
+    const Eigen::MatrixXd d = positions(m) - positions(input);
+    const Eigen::Map<const Eigen::VectorXd> all(d.data(), d.size());  // 30726 samples
+    EXPECT_NEAR(all.mean(), 0.0, 4 * sigma / std::sqrt(double(all.size())));
+    EXPECT_NEAR(rms(all), sigma, 0.03 * sigma);
+  }
+  {
+    Mesh m = input;
+    const double sigma = lapmesh::add_noise(
+      m, level, LP::noise_scale(lapmesh::Noise_scale::bounding_box_diagonal, LP::noise_direction(lapmesh::Noise_direction::normal)));
+    const Eigen::MatrixXd P = positions(input);
+    const double diag = (P.colwise().maxCoeff() - P.colwise().minCoeff()).norm();
+    EXPECT_NEAR(sigma, level * diag, 1e-12);
+    const Eigen::MatrixXd d = positions(m) - P;
+    Eigen::VectorXd along(d.rows());
+    for(Eigen::Index i = 0; i < d.rows(); ++i) {
+      const Eigen::Vector3d normal = P.row(i).normalized();  // icosphere: the normal is radial to ~1e-3
+      along[i] = d.row(i).dot(normal);
+      EXPECT_LE((d.row(i).transpose() - along[i] * normal).norm(), 1e-2 * std::abs(along[i]) + 1e-15);
+    }
+    EXPECT_NEAR(rms(along), sigma, 0.03 * sigma);
+  }
+}
+
+TEST(Smoothing, SmoothingANoisySphereLowersTheError)
+{
+  const Mesh clean = to_mesh(lapmesh::icosphere(4));
+  Mesh noisy = clean;
+  lapmesh::add_noise(noisy, 0.3, CGAL::parameters::random_seed(1));
+  auto error = [&](const Mesh& m) {  // RMS distance to the clean (unit) sphere
+    return std::sqrt((positions(m).rowwise().norm().array() - 1.0).square().mean());
+  };
+  const double e0 = error(noisy);
+  for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    Mesh m = noisy;
+    lapmesh::smooth_laplacian_implicit(m, lapmesh::scale_free_time_step(m, 0.5, LP::laplacian(lap)),
+                                       LP::restore_volume(true, LP::laplacian(lap)).number_of_iterations(2));
+    std::cout << lapmesh::to_string(lap) << " " << e0 << " -> " << error(m) << "\n";
+    EXPECT_LT(error(m), 0.6 * e0) << lapmesh::to_string(lap);
+  }
+  Mesh m = noisy;
+  const double bound = lapmesh::explicit_stability_bound(m);
+  lapmesh::smooth_laplacian_explicit(m, 0.5 * bound, LP::restore_volume(true).number_of_iterations(60));
+  std::cout << "explicit " << e0 << " -> " << error(m) << "\n";
+  EXPECT_LT(error(m), 0.6 * e0);
+}
+
+TEST(Smoothing, RejectsBadArguments)
+{
+  Mesh m = to_mesh(lapmesh::icosphere(1));
+  const Mesh copy = m;
+  for(double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(lapmesh::smooth_laplacian_implicit(m, bad), std::invalid_argument);
+  EXPECT_THROW(lapmesh::smooth_laplacian_explicit(m, 0.1, CGAL::parameters::number_of_iterations(0)), std::invalid_argument);
+  EXPECT_EQ((positions(m) - positions(copy)).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// ---- command line -------------------------------------------------------------------
+
+namespace {
+
+struct Run_result
+{
+  int status;
+  std::string err;
+};
+
+Run_result run_cli(const std::string& args)
+{
+  const std::string err_path = std::string(LAPMESH_TEST_TMP) + "/smooth_stderr.txt";
+  const std::string cmd = std::string(LAPMESH_CLI) + " " + args + " >/dev/null 2>" + err_path;
+  const int raw = std::system(cmd.c_str());
+  std::ifstream in(err_path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, ss.str()};
+}
+
+std::string write_sphere()
+{
+  const std::string path = std::string(LAPMESH_TEST_TMP) + "/smooth_in.off";
+  const Mesh m = to_mesh(lapmesh::icosphere(2));
+  const auto [P, tris] = lapmesh::io::mesh_arrays(m);
+  lapmesh::io::write_mesh(path, P, tris);
+  return path;
+}
+
+} // namespace
+
+TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
+{
+  const std::string in = write_sphere();
+  const std::string out = std::string(LAPMESH_TEST_TMP) + "/smooth_out.off";
+  const std::vector<std::string> bad = {
+    "--lambda 0 --iterations 3",      "--lambda -0.5 --iterations 3", "--lambda nan --iterations 3",
+    "--lambda inf --iterations 3",    "--lambda abc --iterations 3",  "--lambda 0.01 --iterations 0",
+    "--lambda 0.01 --iterations -2"};
+  for(const std::string& scheme : {"explicit", "implicit"})
+    for(const std::string& args : bad) {
+      std::filesystem::remove(out);
+      const Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme " + scheme + " " + args);
+      EXPECT_NE(r.status, 0) << args;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+      EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
+      EXPECT_FALSE(std::filesystem::exists(out)) << args;
+    }
+}
+
+TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
+{
+  const std::string in = write_sphere();
+  const std::string out = std::string(LAPMESH_TEST_TMP) + "/smooth_ok.off";
+  std::filesystem::remove(out);
+  Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 0.001 --iterations 2");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(out));
+  // The CLI output equals the library's result to the printed precision.
+  Mesh expected = to_mesh(lapmesh::icosphere(2));
+  lapmesh::smooth_laplacian_implicit(expected, 0.001, CGAL::parameters::number_of_iterations(2));
+  Mesh got;
+  lapmesh::io::read_triangle_mesh(out, got);
+  EXPECT_LE((positions(got) - positions(expected)).cwiseAbs().maxCoeff(), 1e-15);
+
+  const std::string n1 = std::string(LAPMESH_TEST_TMP) + "/noise1.off", n2 = std::string(LAPMESH_TEST_TMP) + "/noise2.off";
+  EXPECT_EQ(run_cli("noise " + in + " -o " + n1 + " --level 0.1 --seed 5").status, 0);
+  EXPECT_EQ(run_cli("noise " + in + " -o " + n2 + " --level 0.1 --seed 5").status, 0);
+  std::ifstream a(n1), b(n2);
+  std::stringstream sa, sb;
+  sa << a.rdbuf();
+  sb << b.rdbuf();
+  EXPECT_EQ(sa.str(), sb.str());
+  r = run_cli("noise " + in + " -o " + n1 + " --level -1");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
