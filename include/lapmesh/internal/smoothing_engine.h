@@ -100,14 +100,19 @@ inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& penc
     if(k > 0) w -= beta.back() * v_prev;
     alpha.push_back(a);
     const double b = w.norm();
-    // Ritz values of the k+1 x k+1 tridiagonal matrix.
+    // Ritz values of the tridiagonal matrix, every 8 steps (O(m^2) each).
     const int m = int(alpha.size());
-    Eigen::MatrixXd T = Eigen::MatrixXd::Zero(m, m);
-    for(int r = 0; r < m; ++r) {
-      T(r, r) = alpha[r];
-      if(r + 1 < m) T(r, r + 1) = T(r + 1, r) = beta[r];
+    if(m % 8 != 0 && m != max_steps && !(b <= 1e-14 * std::abs(a))) {
+      beta.push_back(b);
+      v_prev.swap(v);
+      v = w / b;
+      continue;
     }
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(T);
+    Eigen::VectorXd diag = Eigen::Map<const Eigen::VectorXd>(alpha.data(), m);
+    Eigen::VectorXd sub(std::max(m - 1, 1));
+    for(int r = 0; r + 1 < m; ++r) sub[r] = beta[r];
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
+    es.computeFromTridiagonal(diag, sub.head(std::max(m - 1, 0)), Eigen::ComputeEigenvectors);
     const double theta = es.eigenvalues()[m - 1];
     const double residual = std::abs(b * es.eigenvectors()(m - 1, m - 1));
     estimate = theta + residual;
