@@ -70,6 +70,8 @@ struct Spectral_options
   bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
   Sparse_cholesky cholesky = Sparse_cholesky::simplicial;
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
+  int band_size = 0;               ///< > 0: spectrum slicing in bands of this many pairs (see below)
+  double ncv_factor = 2.0;         ///< Krylov subspace size ncv = max(ncv_factor * m + 1, m + 20)
   std::function<void(const Spectral_progress&)> progress;  ///< optional
 };
 
@@ -167,7 +169,7 @@ Spectral_pairs lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
 {
   const Eigen::Index n = sqrt_mass.size();
   Spectral_shift_invert_op<Factor> op(factor, sqrt_mass, on_op);
-  const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(2 * m + 1, m + 20));
+  const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(Eigen::Index(opt.ncv_factor * double(m)) + 1, m + 20));
   Spectra::SymEigsShiftSolver<Spectral_shift_invert_op<Factor>> eigs(op, m, ncv, sigma);
   eigs.init();
   eigs.compute(Spectra::SortRule::LargestMagn, opt.max_restarts, opt.tolerance, Spectra::SortRule::SmallestAlge);
@@ -201,6 +203,106 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
   for(Eigen::Index j = k - 1; j + 1 < v.size(); ++j)
     if(v[j + 1] - v[j] > 1e-6 * std::max(std::abs(v[j + 1]), 1e-6 * scale)) return j;
   return -1;
+}
+
+
+/// Spectrum slicing ("bands", as in Vallet & Levy's manifold harmonics): shift-invert Lanczos
+/// around successive shifts sigma_0 < sigma_1 < ..., each for band_size pairs, so that the
+/// Krylov space stays small (Spectra's dense work grows with the square of its size). Each
+/// shift's LDL^T factorisation (one symbolic analysis for all) also gives, by Sylvester's law,
+/// the exact number of eigenvalues below it: every band is checked against it, so a dropped
+/// or duplicated pair is detected, never returned.
+inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+                                        Eigen::Index k, const Spectral_options& opt)
+{
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const Eigen::Index n = mass.size();
+  using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
+  const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
+  const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), n - 2);
+  Ldlt ldlt;
+  bool analysed = false;
+  auto factor_at = [&](double sigma) -> Eigen::Index {
+    Eigen::SparseMatrix<double> K = minus_S;
+    K.diagonal() -= sigma * mass;
+    if(!analysed) ldlt.analyzePattern(K);
+    analysed = true;
+    ldlt.factorize(K);
+    if(ldlt.info() != Eigen::Success)
+      throw Numerical_error("spectral solver: the LDL^T factorisation of -S - sigma M failed (sigma = " +
+                            std::to_string(sigma) + ")");
+    return (ldlt.vectorD().array() < 0).count();
+  };
+  int band = 0;
+  long long ops_total = 0;
+  const std::function<void(long long)> on_op = [&](long long ops) {
+    if(opt.progress && ops % 10 == 0)
+      opt.progress(Spectral_progress{"lanczos band", ops_total + ops, band + 1,
+                                     std::chrono::duration<double>(clock::now() - t0).count()});
+  };
+
+  std::vector<double> values;
+  std::vector<Eigen::VectorXd> vectors;
+  double u = 0;          // every eigenvalue below u is in `values` (verified up to `verified`)
+  double width = 0;      // width of the last band's accepted range
+  double sigma = -opt.shift_factor / mass.sum();
+  Eigen::Index expected_below_sigma = 0;
+  for(int retries = 0; Eigen::Index(values.size()) < k || band == 0; ++band) {
+    if(band > 0) sigma = u + 0.4 * width;
+    const Eigen::Index nu = factor_at(sigma);
+    // The accepted values below sigma must be exactly the nu eigenvalues below it; the band
+    // adds those in [u, sigma).
+    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, B, opt, on_op);
+    ops_total += F.operations;
+    const Eigen::Index m = F.values.size();
+    if(band > 0 && F.values[0] > u) {  // no overlap with the accepted range: move the shift down
+      if(++retries > 6) throw Numerical_error("spectral solver: bands do not overlap");
+      width *= 0.5;
+      --band;
+      continue;
+    }
+    // Cut below the cluster of the largest value, at a gap.
+    Eigen::Index top = m - 1;
+    while(top > 0 && F.values[top] - F.values[top - 1] <= 1e-6 * std::abs(F.values[top])) --top;
+    if(top == 0) throw Numerical_error("spectral solver: a band holds a single repeated eigenvalue; raise band_size");
+    const double cut = 0.5 * (F.values[top - 1] + F.values[top]);
+    Eigen::Index added_below_sigma = 0;
+    const std::size_t before = values.size();
+    for(Eigen::Index j = 0; j < top; ++j) {
+      if(band > 0 && F.values[j] < u) continue;
+      values.push_back(F.values[j]);
+      vectors.push_back(F.vectors.col(j));
+      if(F.values[j] < sigma) ++added_below_sigma;
+    }
+    expected_below_sigma = Eigen::Index(before) + added_below_sigma;
+#ifdef LAPMESH_DEBUG_BANDS
+    std::fprintf(stderr, "band %d sigma %g u %g nu %ld expected %ld F:", band, sigma, u, long(nu), long(expected_below_sigma));
+    for(Eigen::Index j = 0; j < m; ++j) std::fprintf(stderr, " %g", F.values[j]);
+    std::fprintf(stderr, "\n");
+#endif
+    if(nu != expected_below_sigma)
+      throw Numerical_error("spectral solver: band " + std::to_string(band) + " is incomplete (" +
+                            std::to_string(nu) + " eigenvalues below the shift, " +
+                            std::to_string(expected_below_sigma) + " found); raise band_size");
+    width = cut - (band == 0 ? 0.0 : u);
+    u = cut;
+    retries = 0;
+    if(Eigen::Index(values.size()) >= n - 1) break;
+  }
+  // Final check: exactly values.size() eigenvalues below the last cut.
+  if(factor_at(u) != Eigen::Index(values.size()))
+    throw Numerical_error("spectral solver: the last band is incomplete; raise band_size");
+  Spectral_pairs out;
+  // Keep all pairs up to the end of the cluster of lambda_{k-1} (bands end at gaps).
+  Eigen::Index keep = Eigen::Index(values.size());
+  out.values = Eigen::Map<Eigen::VectorXd>(values.data(), keep);
+  out.vectors.resize(n, keep);
+  for(Eigen::Index j = 0; j < keep; ++j) out.vectors.col(j) = vectors[std::size_t(j)];
+  out.operations = ops_total;
+  out.attempts = band;
+  out.shift = sigma;
+  return out;
 }
 
 template <typename Factor>
@@ -283,6 +385,8 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   const Eigen::SparseMatrix<double> minus_S = -stiffness;
+  if(opt.band_size > 0 && k > opt.band_size && !(2 * k >= n && n <= opt.dense_limit))
+    return banded_eigenpairs(minus_S, mass, k, opt);
   if(opt.cholesky == Sparse_cholesky::cholmod) {
 #ifdef LAPMESH_HAS_CHOLMOD
     return smallest_eigenpairs_with<Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower>>(minus_S, mass,
