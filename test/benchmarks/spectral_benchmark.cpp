@@ -1,0 +1,188 @@
+// Spectral basis timings (doc/spectral.md): lapmesh's solver (shift-invert Lanczos on the
+// standardised pencil, SimplicialLLT or CHOLMOD) against the plain public set-up that
+// ANCHORS.md measured (Spectra's SymGEigsShiftSolver, ShiftInvert mode, on Eigen's
+// SimplicialLDLT), on the same pencils, in one run so that ratios are comparable.
+// Meshes: CGAL's data set, Loop-subdivided to reach the sizes (closed or with boundary).
+//   ./spectral_benchmark --benchmark_filter=...   (peak memory: /usr/bin/time -v, one filter at a time)
+#include "test_helpers.h"
+
+#include <lapmesh/io.h>
+#include <lapmesh/spectral_reconstruction.h>
+
+#include <CGAL/subdivision_method_3.h>
+
+#include <Spectra/MatOp/SparseSymMatProd.h>
+#include <Spectra/MatOp/SymShiftInvert.h>
+#include <Spectra/SymGEigsShiftSolver.h>
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <map>
+
+namespace {
+
+struct Case
+{
+  const char* file;
+  int loop_steps;
+};
+
+// 0: ChineseDragon 10k; 1: armadillo x1 Loop ~104k; 2: man x2 Loop ~280k; 3: refined_elephant 44k;
+// 4: bunny00 37.7k... (see doc/spectral.md for the exact vertex counts printed by the benchmark)
+const Case cases[] = {{"ChineseDragon-10kv.off", 0}, {"armadillo.off", 1}, {"man.off", 2}, {"refined_elephant.off", 0}};
+
+const lapmesh::Laplacian_pencil& pencil(int id)
+{
+  static std::map<int, lapmesh::Laplacian_pencil> cache;
+  auto it = cache.find(id);
+  if(it != cache.end()) return it->second;
+  lapmesh_test::Mesh m;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), m);
+  if(cases[id].loop_steps > 0)
+    CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
+  // Scale to unit area, as in ANCHORS.md.
+  auto p = lapmesh::laplacian_pencil(m);
+  const double area = p.mass.sum();
+  p.stiffness *= 1.0;  // C is scale-invariant
+  p.mass /= area;
+  return cache.emplace(id, std::move(p)).first->second;
+}
+
+void BM_lapmesh(benchmark::State& state, lapmesh::Sparse_cholesky chol)
+{
+  const auto& p = pencil(int(state.range(0)));
+  const int k = int(state.range(1));
+  lapmesh::Spectral_options opt;
+  opt.cholesky = chol;
+  long long ops = 0;
+  double lambda_last = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, k, opt);
+    ops = b.operations();
+    lambda_last = b.eigenvalues()[k - 1];
+    benchmark::DoNotOptimize(b.eigenvectors().data());
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["solves"] = double(ops);
+  state.counters["lambda_k-1"] = lambda_last;
+}
+
+void BM_lapmesh_nocheck(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  const int k = int(state.range(1));
+  lapmesh::Spectral_options opt;
+  opt.check_completeness = false;
+  opt.extra = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, k, opt);
+    benchmark::DoNotOptimize(b.eigenvectors().data());
+  }
+  state.counters["n"] = double(p.mass.size());
+}
+
+// The public baseline: Spectra's generalized shift-invert on Eigen's SimplicialLDLT.
+void BM_plain_spectra(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  const int k = int(state.range(1));
+  const Eigen::SparseMatrix<double> A = -p.stiffness;
+  Eigen::SparseMatrix<double> B(p.mass.size(), p.mass.size());
+  B.reserve(Eigen::VectorXi::Constant(p.mass.size(), 1));
+  for(Eigen::Index i = 0; i < p.mass.size(); ++i) B.insert(i, i) = p.mass[i];
+  double lambda_last = 0;
+  for(auto _ : state) {
+    using OpType = Spectra::SymShiftInvert<double, Eigen::Sparse, Eigen::Sparse>;
+    using BOpType = Spectra::SparseSymMatProd<double>;
+    OpType op(A, B);
+    BOpType bop(B);
+    const double sigma = -1e-2 / p.mass.sum();
+    Spectra::SymGEigsShiftSolver<OpType, BOpType, Spectra::GEigsMode::ShiftInvert> eigs(
+      op, bop, k, std::min<Eigen::Index>(p.mass.size(), std::max(2 * k + 1, 20)), sigma);
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10, Spectra::SortRule::SmallestAlge);
+    if(eigs.info() != Spectra::CompInfo::Successful) state.SkipWithError("not converged");
+    lambda_last = eigs.eigenvalues()[k - 1];
+    benchmark::DoNotOptimize(eigs.eigenvectors().data());
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["lambda_k-1"] = lambda_last;
+}
+
+void sizes(benchmark::internal::Benchmark* b)
+{
+  b->Args({0, 30})->Args({1, 30})->Args({2, 30})->Args({3, 100})->Args({3, 300})->Args({0, 1000});
+  b->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
+}
+
+} // namespace
+
+BENCHMARK_CAPTURE(BM_lapmesh, simplicial, lapmesh::Sparse_cholesky::simplicial)->Apply(sizes);
+#ifdef LAPMESH_HAS_CHOLMOD
+BENCHMARK_CAPTURE(BM_lapmesh, cholmod, lapmesh::Sparse_cholesky::cholmod)->Apply(sizes);
+#endif
+BENCHMARK(BM_lapmesh_nocheck)->Apply(sizes);
+BENCHMARK(BM_plain_spectra)->Apply(sizes);
+
+// Where the time goes: ordering + symbolic analysis, numeric factorisation, one solve pair.
+void BM_breakdown(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  Eigen::SparseMatrix<double> K = -p.stiffness;
+  K.diagonal() += 1e-2 / p.mass.sum() * p.mass;
+  double t_analyse = 0, t_factor = 0, t_solve = 0, nnz = 0;
+  for(auto _ : state) {
+    using clock = std::chrono::steady_clock;
+    Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
+    auto t0 = clock::now();
+    llt.analyzePattern(K);
+    auto t1 = clock::now();
+    llt.factorize(K);
+    auto t2 = clock::now();
+    Eigen::VectorXd b = Eigen::VectorXd::Ones(K.rows()), x;
+    for(int i = 0; i < 10; ++i) x = llt.solve(b);
+    auto t3 = clock::now();
+    t_analyse = std::chrono::duration<double>(t1 - t0).count();
+    t_factor = std::chrono::duration<double>(t2 - t1).count();
+    t_solve = std::chrono::duration<double>(t3 - t2).count() / 10;
+    nnz = double(llt.matrixL().nestedExpression().nonZeros());
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["analyse_ms"] = 1e3 * t_analyse;
+  state.counters["factor_ms"] = 1e3 * t_factor;
+  state.counters["solve_ms"] = 1e3 * t_solve;
+  state.counters["nnz_L"] = nnz;
+}
+void BM_ncv(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  lapmesh::Spectral_options opt;
+  opt.ncv_factor = double(state.range(2)) / 10;
+  long long ops = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
+    ops = b.operations();
+  }
+  state.counters["solves"] = double(ops);
+}
+BENCHMARK(BM_ncv)->ArgsProduct({{1, 3}, {30, 100}, {12, 15, 20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_banded(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  lapmesh::Spectral_options opt;
+  opt.band_size = int(state.range(2));
+  long long ops = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
+    ops = b.operations();
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["solves"] = double(ops);
+}
+BENCHMARK(BM_banded)->ArgsProduct({{3}, {100, 300}, {25, 40, 60}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_banded)->ArgsProduct({{0}, {1000}, {40, 60, 100}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_banded)->ArgsProduct({{1, 2}, {30}, {15, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_breakdown)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+BENCHMARK_MAIN();
