@@ -122,7 +122,9 @@ TEST(Smoothing, ExplicitBlowsUpAboveTheBoundAndNotBelow)
 
     Mesh below = input;
     const auto rb = lapmesh::smooth_laplacian_explicit(
-      below, 0.95 * bound, LP::fixed_operator(true, LP::laplacian(lap)).number_of_iterations(400));
+      below, 0.95 * bound,
+      LP::compute_stability_bound(true, LP::fixed_operator(true, LP::laplacian(lap))).number_of_iterations(400));
+    EXPECT_TRUE(rb.stability_bound_exact);
     EXPECT_FALSE(rb.above_stability_bound);
     EXPECT_NEAR(rb.stability_bound, bound, 1e-12 * bound);  // the bound reported is the one computed
     EXPECT_LE(positions(below).cwiseAbs().maxCoeff(), size0 * (1 + 1e-9));
@@ -197,6 +199,34 @@ TEST(Smoothing, CotangentImplicitWithBoundaryAndConstraintsEqualsDenseDirichletS
     EXPECT_LE((positions(m) - X).cwiseAbs().maxCoeff(), 1e-12) << "fixed operator " << fixed_operator;
     EXPECT_GT((positions(m) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);  // it did move
   }
+}
+
+TEST(Smoothing, CholmodAndEigenSolversAgree)
+{
+  const Mesh input = to_mesh(lapmesh::bumpy_sphere(3));
+  Mesh a = input, b = input;
+  const double lambda = lapmesh::scale_free_time_step(input, 3.0);
+  const auto ra = lapmesh::smooth_laplacian_implicit(a, lambda, LP::use_cholmod(true).number_of_iterations(5));
+  const auto rb = lapmesh::smooth_laplacian_implicit(b, lambda, LP::use_cholmod(false).number_of_iterations(5));
+#ifdef LAPMESH_HAS_CHOLMOD
+  EXPECT_EQ(ra.solver, "cholmod-supernodal");
+#else
+  EXPECT_EQ(ra.solver, "eigen-ldlt");
+#endif
+  EXPECT_EQ(rb.solver, "eigen-ldlt");
+  EXPECT_LE((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT((positions(a) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(Smoothing, ExplicitSkipsLanczosWhenGershgorinProvesStability)
+{
+  Mesh m = to_mesh(lapmesh::icosphere(3));
+  const double bound = lapmesh::explicit_stability_bound(m);
+  const auto r = lapmesh::smooth_laplacian_explicit(m, 0.2 * bound, CGAL::parameters::number_of_iterations(3));
+  EXPECT_FALSE(r.stability_bound_exact);
+  EXPECT_FALSE(r.above_stability_bound);
+  EXPECT_LE(r.stability_bound, bound);      // Gershgorin is a safe (lower) bound
+  EXPECT_GT(r.stability_bound, 0.3 * bound);
 }
 
 TEST(Smoothing, FixedVerticesNeverMoveBitwise)

@@ -35,6 +35,13 @@ LAPMESH_NAMED_PARAMETER(fixed_operator)
 LAPMESH_NAMED_PARAMETER(restore_volume)
 /// std::function<void(int done, int total)>, called after each iteration.
 LAPMESH_NAMED_PARAMETER(progress_callback)
+/// bool; default false: for the explicit scheme, always compute the Lanczos estimate of the
+/// stability bound (otherwise skipped when lambda is below the Gershgorin bound, which proves
+/// stability on its own).
+LAPMESH_NAMED_PARAMETER(compute_stability_bound)
+/// bool; default true: use CHOLMOD (supernodal) for the implicit schemes when lapmesh is
+/// compiled with LAPMESH_HAS_CHOLMOD; false forces Eigen's SimplicialLDLT.
+LAPMESH_NAMED_PARAMETER(use_cholmod)
 
 namespace internal {
 
@@ -55,6 +62,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.fixed_operator = choose_parameter(get_parameter(np, internal_np::fixed_operator), false);
   s.restore_volume = choose_parameter(get_parameter(np, internal_np::restore_volume), false);
   s.parallel = is_parallel<ConcurrencyTag>();
+  s.compute_stability_bound = choose_parameter(get_parameter(np, internal_np::compute_stability_bound), false);
+  s.use_cholmod = choose_parameter(get_parameter(np, internal_np::use_cholmod), true);
   if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value)
     s.progress = get_parameter(np, internal_np::progress_callback);
 

