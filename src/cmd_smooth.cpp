@@ -19,7 +19,7 @@ struct Smooth_options
   std::string input, output;
   std::string scheme, lambda, lambda_unit = "absolute", laplacian = "cotangent", area = "barycentric";
   long long iterations = 0;
-  bool fixed_operator = false, restore_volume = false, quiet = false;
+  bool fixed_operator = false, restore_volume = false, reuse_factorization = false, quiet = false;
 };
 
 void run(const Smooth_options& o)
@@ -69,9 +69,9 @@ void run(const Smooth_options& o)
     else if(unit == "edge2") lambda = lapmesh::scale_free_time_step(mesh, lambda_value, base);
     else lambda = lambda_value;
 
-    auto np = lapmesh::parameters::progress_callback(
+    auto np = lapmesh::parameters::reuse_factorization(o.reuse_factorization, lapmesh::parameters::progress_callback(
       progress, lapmesh::parameters::restore_volume(
-                  o.restore_volume, lapmesh::parameters::fixed_operator(o.fixed_operator, base)))
+                  o.restore_volume, lapmesh::parameters::fixed_operator(o.fixed_operator, base))))
                 .number_of_iterations(unsigned(o.iterations));
     switch(scheme) {
       case lapmesh::Smoothing_scheme::explicit_euler:
@@ -135,6 +135,8 @@ void register_smooth(CLI::App& app)
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the input mesh for all iterations");
   cmd->add_flag("--restore-volume", o->restore_volume,
                 "rescale to the input's enclosed volume and centroid after each step (closed meshes)");
+  cmd->add_flag("--reuse-factorization", o->reuse_factorization,
+                "implicit: solve by CG preconditioned with the previous Cholesky factor, refactorise only when needed");
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
   cmd->callback([o] { run(*o); });
 }

@@ -218,6 +218,19 @@ TEST(Smoothing, CholmodAndEigenSolversAgree)
   EXPECT_GT((positions(a) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);
 }
 
+TEST(Smoothing, ReusedFactorizationMatchesRefactorization)
+{
+  const Mesh input = to_mesh(lapmesh::bumpy_sphere(4));
+  Mesh a = input, b = input;
+  const double lambda = lapmesh::scale_free_time_step(input, 1.0);
+  const auto ra = lapmesh::smooth_laplacian_implicit(a, lambda, CGAL::parameters::number_of_iterations(6));
+  const auto rb = lapmesh::smooth_laplacian_implicit(b, lambda, LP::reuse_factorization(true).number_of_iterations(6));
+  EXPECT_EQ(ra.factorizations, 6);
+  EXPECT_LT(rb.factorizations, 6);
+  EXPECT_EQ(rb.factorizations + rb.preconditioned_solves, 6);
+  EXPECT_LE((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-10);
+}
+
 TEST(Smoothing, ExplicitSkipsLanczosWhenGershgorinProvesStability)
 {
   Mesh m = to_mesh(lapmesh::icosphere(3));

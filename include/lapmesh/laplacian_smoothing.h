@@ -42,6 +42,10 @@ LAPMESH_NAMED_PARAMETER(compute_stability_bound)
 /// bool; default true: use CHOLMOD (supernodal) for the implicit schemes when lapmesh is
 /// compiled with LAPMESH_HAS_CHOLMOD; false forces Eigen's SimplicialLDLT.
 LAPMESH_NAMED_PARAMETER(use_cholmod)
+/// bool; default false: with the rebuilt operator, solve each step by conjugate gradients
+/// preconditioned by the previous Cholesky factor (to a relative residual of 1e-12) and
+/// refactorise only when CG needs more than 10 iterations.
+LAPMESH_NAMED_PARAMETER(reuse_factorization)
 
 namespace internal {
 
@@ -64,6 +68,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.parallel = is_parallel<ConcurrencyTag>();
   s.compute_stability_bound = choose_parameter(get_parameter(np, internal_np::compute_stability_bound), false);
   s.use_cholmod = choose_parameter(get_parameter(np, internal_np::use_cholmod), true);
+  s.reuse_factorization = choose_parameter(get_parameter(np, internal_np::reuse_factorization), false);
   if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value)
     s.progress = get_parameter(np, internal_np::progress_callback);
 

@@ -44,7 +44,7 @@ const Arrays& torus_arrays(int thousands)
   return cache.emplace(thousands, std::move(a)).first->second;
 }
 
-void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_operator)
+void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_operator, bool reuse = false)
 {
   const Arrays& a = torus_arrays(int(state.range(0)));
   const bool parallel = state.range(1) != 0;
@@ -53,6 +53,7 @@ void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_o
   s.iterations = 10;
   s.fixed_operator = fixed_operator;
   s.parallel = parallel;
+  s.reuse_factorization = reuse;
   const double h = lapmesh::internal::mean_edge_length(a.topology, a.positions);
   s.lambda = scheme == lapmesh::Smoothing_scheme::explicit_euler ? 0.1 * h * h : 1.0 * h * h;
   lapmesh::Smoothing_report total;
@@ -67,6 +68,8 @@ void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_o
     total.analysis_seconds += r.analysis_seconds;
     total.factorization_seconds += r.factorization_seconds;
     total.solve_seconds += r.solve_seconds;
+    total.factorizations += r.factorizations;
+    total.cg_iterations += r.cg_iterations;
     ++runs;
   }
   state.counters["vertices"] = double(a.topology.num_vertices);
@@ -74,9 +77,12 @@ void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_o
   state.counters["analysis_s"] = total.analysis_seconds / runs;
   state.counters["factor_s"] = total.factorization_seconds / runs;
   state.counters["solve_s"] = total.solve_seconds / runs;
+  state.counters["factorizations"] = total.factorizations / runs;
+  state.counters["cg_iterations"] = total.cg_iterations / runs;
 }
 
 void BM_Implicit(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::implicit_euler, false); }
+void BM_ImplicitReuse(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::implicit_euler, false, true); }
 void BM_ExplicitFixedOperator(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, true); }
 void BM_ExplicitRebuilt(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, false); }
 
@@ -99,6 +105,7 @@ void BM_ImplicitSurfaceMesh(benchmark::State& state)
 } // namespace
 
 BENCHMARK(BM_Implicit)->ArgsProduct({{100, 250, 1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
+BENCHMARK(BM_ImplicitReuse)->ArgsProduct({{100, 250, 1000}, {0}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ImplicitSurfaceMesh)->Arg(250)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ExplicitFixedOperator)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(BM_ExplicitRebuilt)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);

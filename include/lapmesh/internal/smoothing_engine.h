@@ -56,6 +56,8 @@ struct Smoothing_report
   std::string solver;
   double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
   int factorizations = 0;
+  int preconditioned_solves = 0;  ///< steps solved by CG with a previous factor
+  int cg_iterations = 0;          ///< total CG iterations (all three coordinates)
 };
 
 namespace internal {
@@ -233,6 +235,9 @@ struct Smoothing_settings
   bool parallel = false;
   bool compute_stability_bound = false;  ///< always run Lanczos for the explicit scheme
   bool use_cholmod = true;               ///< with LAPMESH_HAS_CHOLMOD: CHOLMOD supernodal LL^T
+  /// Rebuilt operator: solve with conjugate gradients preconditioned by the last Cholesky
+  /// factor (relative residual 1e-12) and refactorise only when that needs > 10 iterations.
+  bool reuse_factorization = false;
   std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
 };
 
@@ -401,13 +406,61 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       factorized = false;
     }
     const double* values = S.valuePtr();
-    if(!factorized) {
-      t0 = Clock::now();
+    auto fill_matrix = [&] {
       double* a = A.valuePtr();
       const Index na = A.nonZeros();
       for(Index k = 0; k < na; ++k) a[k] = -s.lambda * values[a_source[k]];
       for(Index i = 0; i < n; ++i)
         if(free_mask[i]) a[a_diagonal[fid[i]]] += pencil.mass[i];
+    };
+    auto fill_rhs = [&] {  // M_FF P_F + lambda S_FB P_B
+      for_each_index(n, s.parallel, [&](Index i) {
+        if(!free_mask[i]) return;
+        Eigen::Vector3d b = pencil.mass[i] * P.row(i).transpose();
+        for(Index k = outer[i]; k < outer[i + 1]; ++k)
+          if(!free_mask[inner[k]]) b += s.lambda * values[k] * P.row(inner[k]).transpose();
+        B.row(fid[i]) = b.transpose();
+      });
+    };
+    bool solved = false;
+    if(!factorized && s.reuse_factorization && report.factorizations > 0) {
+      // Preconditioned CG (three coordinates as one block with per-column step sizes), warm
+      // started from the current positions, preconditioned by the previous factorisation.
+      t0 = Clock::now();
+      fill_matrix();
+      fill_rhs();
+      for(Index i = 0; i < n; ++i)
+        if(free_mask[i]) X.row(fid[i]) = P.row(i);
+      const auto Asym = A.selfadjointView<Eigen::Lower>();
+      Eigen::Matrix<double, Eigen::Dynamic, 3> R = B - Asym * X, Z(nf, 3), D(nf, 3), Q(nf, 3);
+      const Eigen::RowVector3d bnorm = B.colwise().norm();
+      bool ok = solver.solve(R, Z);
+      D = Z;
+      Eigen::RowVector3d rz = (R.cwiseProduct(Z)).colwise().sum();
+      int k = 0;
+      for(; ok && k < 10; ++k) {
+        if(((R.colwise().norm().array()) <= 1e-12 * bnorm.array()).all()) break;
+        Q = Asym * D;
+        const Eigen::RowVector3d dq = (D.cwiseProduct(Q)).colwise().sum();
+        const Eigen::RowVector3d alpha = (dq.array() > 0).select(rz.array() / dq.array(), 0.0);
+        X += D * alpha.asDiagonal();
+        R -= Q * alpha.asDiagonal();
+        ok = solver.solve(R, Z);
+        const Eigen::RowVector3d rz_new = (R.cwiseProduct(Z)).colwise().sum();
+        const Eigen::RowVector3d beta = (rz.array() > 0).select(rz_new.array() / rz.array(), 0.0);
+        D = Z + D * beta.asDiagonal();
+        rz = rz_new;
+      }
+      report.cg_iterations += 3 * k;
+      if(ok && X.allFinite() && ((R.colwise().norm().array()) <= 1e-12 * bnorm.array()).all()) {
+        solved = true;
+        ++report.preconditioned_solves;
+      }
+      report.solve_seconds += seconds_since(t0);
+    }
+    if(!factorized && !solved) {
+      t0 = Clock::now();
+      fill_matrix();
       const bool ok = solver.factorize(A);
       ++report.factorizations;
       if(!ok)
@@ -417,16 +470,11 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       report.factorization_seconds += seconds_since(t0);
     }
     t0 = Clock::now();
-    // Right-hand side: M_FF P_F + lambda S_FB P_B.
-    for_each_index(n, s.parallel, [&](Index i) {
-      if(!free_mask[i]) return;
-      Eigen::Vector3d b = pencil.mass[i] * P.row(i).transpose();
-      for(Index k = outer[i]; k < outer[i + 1]; ++k)
-        if(!free_mask[inner[k]]) b += s.lambda * values[k] * P.row(inner[k]).transpose();
-      B.row(fid[i]) = b.transpose();
-    });
-    if(!solver.solve(B, X) || !X.allFinite())
-      throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
+    if(!solved) {
+      fill_rhs();
+      if(!solver.solve(B, X) || !X.allFinite())
+        throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
+    }
     for(Index i = 0; i < n; ++i)
       if(free_mask[i]) P.row(i) = X.row(fid[i]);
     report.solve_seconds += seconds_since(t0);
