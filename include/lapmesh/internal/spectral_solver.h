@@ -246,24 +246,25 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
   std::vector<double> values;
   std::vector<Eigen::VectorXd> vectors;
   double u = 0;          // every eigenvalue below u is in `values` (verified by inertia)
-  double width = 0;      // width of the last band's accepted range
+  double density = 0;    // eigenvalues per unit of lambda in the last band (Weyl: about constant)
   double sigma = -opt.shift_factor / mass.sum();
   Eigen::Index nev = B;
   for(int retries = 0; Eigen::Index(values.size()) < k; ++band) {
-    if(band > 0) sigma = u + 0.4 * width;
+    // B pairs nearest sigma span about B / density: put the lower end a little below u.
+    if(band > 0) sigma = u + 0.4 * double(B) / density;
     factor_at(sigma);
     Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, std::min<Eigen::Index>(nev, n - 2), opt, on_op);
     ops_total += F.operations;
     const Eigen::Index m = F.values.size();
     if(band > 0 && F.values[0] > u) {  // no overlap with the accepted range: move the shift down
       if(++retries > 6) throw Numerical_error("spectral solver: bands do not overlap");
-      width *= 0.5;
+      density *= 1.5;
       --band;
       continue;
     }
     // Krylov misses happen at the edge of the window: keep the values nearest to the shift,
-    // dropping the top fifth of the band, and cut at a gap.
-    Eigen::Index top = m - std::max<Eigen::Index>(1, m / 5);
+    // dropping the top eighth of the band, and cut at a gap.
+    Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
     while(top > 0 && F.values[top] - F.values[top - 1] <= 1e-6 * std::abs(F.values[top])) --top;
     if(top == 0 || (band > 0 && F.values[top - 1] < u))
       throw Numerical_error("spectral solver: a band holds a single repeated eigenvalue; raise band_size");
@@ -291,7 +292,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
       values.push_back(F.values[j]);
       vectors.push_back(F.vectors.col(j));
     }
-    width = cut - (band == 0 ? 0.0 : u);
+    density = double(added) / (cut - (band == 0 ? 0.0 : u));
     u = cut;
     retries = 0;
     nev = B;
