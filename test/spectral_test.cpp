@@ -195,6 +195,36 @@ TEST(Spectral, BandedAgreesWithSingleRun)
   EXPECT_LT(m_orthonormality_error(c), 1e-8);
 }
 
+TEST(Spectral, FreeFunctionsNamedParametersAndPolyhedron)
+{
+  Mesh m = to_mesh(lapmesh::bumpy_sphere(3));
+  const Eigen::VectorXd ev = lapmesh::laplacian_eigenvalues(
+    m, 10,
+    LP::spectral_tolerance(1e-9, LP::check_completeness(false, LP::sparse_cholesky(lapmesh::Sparse_cholesky::simplicial,
+                                                                                   CGAL::parameters::number_of_iterations(500)))));
+  const auto ref = lapmesh::Spectral_basis::compute(m, 10);
+  ASSERT_EQ(ev.size(), 10);
+  for(int j = 0; j < 10; ++j) EXPECT_NEAR(ev[j], ref.eigenvalues()[j], 1e-7 * (1 + ref.eigenvalues()[j]));
+  int calls = 0;
+  std::function<void(const lapmesh::Spectral_progress&)> cb = [&](const lapmesh::Spectral_progress& p) {
+    ++calls;
+    EXPECT_GE(p.elapsed_seconds, 0.0);
+  };
+  const auto big = lapmesh::Spectral_basis::compute(m, 200, LP::spectral_progress(cb));
+  EXPECT_GT(calls, 0);
+  EXPECT_GE(big.size(), 200);
+  EXPECT_LT(m_orthonormality_error(big), 1e-8);
+  // spectral_reconstruction writes the point map; k = 1 collapses every vertex to the centroid.
+  const Eigen::MatrixXd P = positions_of(m);
+  const Eigen::RowVector3d c = (ref.mass().transpose() * P) / ref.mass().sum();
+  lapmesh::spectral_reconstruction(m, 1);
+  EXPECT_LT((positions_of(m).rowwise() - c).cwiseAbs().maxCoeff(), 1e-10);
+  // Polyhedron_3 with ids gives the same spectrum as Surface_mesh.
+  const auto poly = to_mesh<Polyhedron>(lapmesh::bumpy_sphere(3));
+  const Eigen::VectorXd ep = lapmesh::laplacian_eigenvalues(poly, 10);
+  for(int j = 0; j < 10; ++j) EXPECT_NEAR(ep[j], ref.eigenvalues()[j], 1e-8 * (1 + ref.eigenvalues()[j]));
+}
+
 TEST(Spectral, SaveLoadRoundTripAndErrors)
 {
   const auto& b = sphere_basis();
