@@ -32,6 +32,12 @@ void check_output_path(const std::string& out, std::initializer_list<const char*
   throw Failure(out + ": unsupported output format '." + ext + "' (expected " + list + ")");
 }
 
+void add_input_output(CLI::App& cmd, std::string& input, std::string& output, const std::string& output_help)
+{
+  cmd.add_option("IN", input, "input mesh (.off, .obj, .ply, .stl)")->required();
+  cmd.add_option("-o,--output", output, output_help)->required();
+}
+
 void add_laplacian_option(CLI::App& cmd, std::string& value)
 {
   cmd.add_option("--laplacian", value, "Laplacian: cotangent (Laplace-Beltrami) or uniform (graph)")

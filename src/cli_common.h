@@ -14,6 +14,10 @@
 #include <stdexcept>
 #include <string>
 
+namespace lapmesh {
+class Spectral_basis;
+}
+
 namespace lapmesh_cli {
 
 using Kernel = CGAL::Simple_cartesian<double>;
@@ -33,11 +37,34 @@ Mesh load_mesh(const std::string& path);
 /// Fails unless OUT's extension is one of `allowed` (lower-case, without the dot).
 void check_output_path(const std::string& out, std::initializer_list<const char*> allowed);
 
+/// Runs f() and turns any library or I/O exception into Failure("path: what"), the CLI's
+/// one-line error. Failures pass through unchanged.
+template <typename Function>
+decltype(auto) or_fail(const std::string& path, Function&& f)
+{
+  try {
+    return f();
+  } catch(const Failure&) {
+    throw;
+  } catch(const std::exception& e) {
+    throw Failure(path + ": " + e.what());
+  }
+}
+
+/// The positional IN and the required -o OUT of every subcommand.
+void add_input_output(CLI::App& cmd, std::string& input, std::string& output, const std::string& output_help);
+
 /// Options shared by several subcommands.
 void add_laplacian_option(CLI::App& cmd, std::string& value);
 void add_area_option(CLI::App& cmd, std::string& value);
 lapmesh::Laplacian laplacian_from(const std::string& value);
 lapmesh::Vertex_area area_from(const std::string& value);
+
+/// Spectral helpers shared by `spectrum` and `reconstruct` (cmd_spectrum.cpp): -k parsed and
+/// checked against n, and the basis computed with progress on a terminal and file-named errors.
+long long spectral_k_from(const std::string& input, const std::string& text, long long n);
+lapmesh::Spectral_basis compute_spectral_basis(const std::string& input, const Mesh& mesh, long long count,
+                                               const std::string& laplacian, const std::string& area);
 
 /// Subcommand registration (one function per cmd_*.cpp file).
 void register_curvature(CLI::App& app);

@@ -43,20 +43,17 @@ void run(const Curvature_options& o)
     if(!fixed_range) throw Failure("--range: expected 'auto' or MIN:MAX with MIN < MAX, got '" + o.range + "'");
   }
   const Mesh mesh = load_mesh(o.input);
-  lapmesh::Vertex_curvatures c;
-  try {
-    c = lapmesh::vertex_curvatures<CGAL::Parallel_if_available_tag>(
+  const lapmesh::Vertex_curvatures c = or_fail(o.input, [&] {
+    return lapmesh::vertex_curvatures<CGAL::Parallel_if_available_tag>(
       mesh, lapmesh::parameters::vertex_area(area_from(o.area), lapmesh::parameters::laplacian(laplacian_from(o.laplacian))));
-  } catch(const std::exception& e) {
-    throw Failure(o.input + ": " + e.what());
-  }
+  });
 
   const Eigen::VectorXd& shown = o.quantity == "mean" ? c.mean : o.quantity == "gaussian" ? c.gaussian
                                  : o.quantity == "k1" ? c.k1 : c.k2;
   const std::vector<double> values(shown.data(), shown.data() + shown.size());
   const lapmesh::Value_range range = fixed_range ? *fixed_range : lapmesh::auto_range(values, o.clip_percent);
 
-  try {
+  or_fail(o.output, [&] {
     if(lapmesh::io::extension_of(o.output) == "csv") {
       write_csv(o.output, c);
     } else {
@@ -70,9 +67,7 @@ void run(const Curvature_options& o)
       attributes.colors = lapmesh::colorize(values, *lapmesh::parse_colormap(o.colormap), range);
       lapmesh::io::write_mesh(o.output, P, tris, attributes);
     }
-  } catch(const lapmesh::Io_error& e) {
-    throw Failure(o.output + ": " + e.what());
-  }
+  });
   if(!o.quiet)
     std::cout << o.input << ": " << num_vertices(mesh) << " vertices, " << num_faces(mesh) << " faces; " << o.quantity
               << " curvature (" << o.laplacian << ", " << o.area << " area) in [" << shown.minCoeff() << ", "
@@ -92,8 +87,7 @@ void register_curvature(CLI::App& app)
     "Uniform mean curvature is the graph-Laplacian quantity and is not scale-correct. Cotangent mean\n"
     "curvature with the barycentric area does not converge at irregular vertices: prefer --area mixed.\n"
     "On boundary vertices the mean and principal curvatures are not surface curvatures.\n");
-  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
-  cmd->add_option("-o,--output", o->output, "output file (.csv, .ply or .off)")->required();
+  add_input_output(*cmd, o->input, o->output, "output file (.csv, .ply or .off)");
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);
   cmd->add_option("--quantity", o->quantity, "quantity to colour: mean, gaussian, k1 or k2")

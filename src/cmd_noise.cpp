@@ -25,26 +25,19 @@ void run(const Noise_options& o)
     throw Failure(o.input + ": --level must be a finite number >= 0 (got " + std::to_string(o.level) + ")");
   check_output_path(o.output, {"off", "obj", "ply", "stl"});
   Mesh mesh = load_mesh(o.input);
-  double sigma = 0;
-  try {
-    auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
-    // The mesh was loaded in input vertex order: noise the arrays directly.
-    auto extracted = lapmesh::internal::extract_mesh(mesh, CGAL::parameters::default_values());
-    sigma = lapmesh::internal::add_noise(
-      extracted.topology, P, o.level,
+  // The mesh was loaded in input vertex order: extract it once and noise the arrays directly
+  // (the internal entry point takes the full 64-bit seed; CGAL's random_seed is 32-bit).
+  auto extracted = or_fail(o.input, [&] { return lapmesh::internal::extract_mesh(mesh, CGAL::parameters::default_values()); });
+  const double sigma = or_fail(o.input, [&] {
+    return lapmesh::internal::add_noise(
+      extracted.topology, extracted.positions, o.level,
       o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic,
       o.scale == "bbox" ? lapmesh::Noise_scale::bounding_box_diagonal : lapmesh::Noise_scale::mean_edge_length,
       o.seed);
-    try {
-      lapmesh::io::write_mesh(o.output, P, tris);
-    } catch(const lapmesh::Io_error& e) {
-      throw Failure(o.output + ": " + e.what());
-    }
-  } catch(const Failure&) {
-    throw;
-  } catch(const std::exception& e) {
-    throw Failure(o.input + ": " + e.what());
-  }
+  });
+  or_fail(o.output, [&] {
+    lapmesh::io::write_mesh(o.output, extracted.positions, lapmesh::io::triangle_list(extracted.topology));
+  });
   if(!o.quiet)
     std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << o.direction << " noise, sigma " << sigma
               << " (level " << o.level << " x " << o.scale << "), seed " << o.seed << "; wrote " << o.output << '\n';
@@ -60,8 +53,7 @@ void register_noise(CLI::App& app)
     "Each vertex moves by sigma * g (g standard normal 3-vector), or sigma * g * n (along the unit vertex\n"
     "normal). sigma = level x mean edge length (each edge once) or x bounding-box diagonal. The same seed\n"
     "gives the same output on every platform (mt19937_64 and lapmesh's own normal sampling).\n");
-  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
-  cmd->add_option("-o,--output", o->output, "output mesh (.off, .obj, .ply, .stl)")->required();
+  add_input_output(*cmd, o->input, o->output, "output mesh (.off, .obj, .ply, .stl)");
   cmd->add_option("--level", o->level, "noise level (>= 0), relative to --scale")->required();
   cmd->add_option("--seed", o->seed, "random seed")->capture_default_str();
   cmd->add_option("--scale", o->scale, "mean-edge or bbox")

@@ -10,11 +10,6 @@
 
 namespace lapmesh_cli {
 
-// Defined in cmd_spectrum.cpp.
-long long spectral_k_from(const std::string& input, const std::string& text, long long n);
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer();
-void clear_progress_line();
-
 namespace {
 
 struct Reconstruct_options
@@ -63,35 +58,15 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
                     std::to_string(basis.size()) + " eigenpairs");
   } else {
     const long long m = std::max(k, std::min(o.basis_size, n));
-    try {
-      basis = lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-        mesh, m,
-        lapmesh::parameters::spectral_progress(
-          spectral_progress_printer(),
-          lapmesh::parameters::vertex_area(area_from(o.area), lapmesh::parameters::laplacian(laplacian_from(o.laplacian)))));
-    } catch(const std::exception& e) {
-      clear_progress_line();
-      throw Failure(o.input + ": " + e.what());
-    }
-    clear_progress_line();
+    basis = compute_spectral_basis(o.input, mesh, m, o.laplacian, o.area);
   }
   auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
   const Eigen::MatrixXd R = basis.reconstruct(P, k);
   if(basis.splits_eigenspace(k))
     std::cerr << o.input << ": warning: lambda_" << k - 1 << " and lambda_" << k
               << " agree to 1e-8 relative; the reconstruction depends on the basis chosen inside that eigenspace\n";
-  if(!o.save_basis.empty()) {
-    try {
-      basis.save(o.save_basis);
-    } catch(const std::exception& e) {
-      throw Failure(o.save_basis + ": " + e.what());
-    }
-  }
-  try {
-    lapmesh::io::write_mesh(o.output, R, tris);
-  } catch(const std::exception& e) {
-    throw Failure(o.output + ": " + e.what());
-  }
+  if(!o.save_basis.empty()) or_fail(o.save_basis, [&] { basis.save(o.save_basis); });
+  or_fail(o.output, [&] { lapmesh::io::write_mesh(o.output, R, tris); });
   if(!o.quiet)
     std::cout << o.input << ": " << n << " vertices reconstructed from " << k << " eigenvectors ("
               << lapmesh::to_string(basis.laplacian()) << ", " << lapmesh::to_string(basis.vertex_area())
@@ -109,8 +84,7 @@ void register_reconstruct(CLI::App& app)
               "--save-basis keeps the eigenpairs (binary, see doc/spectral.md) for later runs with\n"
               "--load-basis at any k up to the number held (--basis-size computes more than k).\n"
               "Warns when lambda_{k-1} = lambda_k (to 1e-8 relative). Progress on stderr when a terminal.\n");
-  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
-  cmd->add_option("-o,--output", o->output, "output mesh (.off, .obj, .ply, .stl)")->required();
+  add_input_output(*cmd, o->input, o->output, "output mesh (.off, .obj, .ply, .stl)");
   cmd->add_option("-k", o->k, "number of eigenvectors, 1 <= k <= number of vertices")->required();
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);

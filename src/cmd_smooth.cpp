@@ -120,8 +120,7 @@ void register_smooth(CLI::App& app)
     "Boundary vertices stay fixed. --lambda auto: 0.9 x the stability bound (explicit) or one mean edge\n"
     "length squared (implicit, conformal). --lambda-unit edge2: lambda x mean edge length^2 (scale-free;\n"
     "the uniform Laplacian is already dimensionless); bound: lambda x the explicit stability bound.\n");
-  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
-  cmd->add_option("-o,--output", o->output, "output mesh (.off, .obj, .ply, .stl)")->required();
+  add_input_output(*cmd, o->input, o->output, "output mesh (.off, .obj, .ply, .stl)");
   cmd->add_option("--scheme", o->scheme, "explicit, implicit or conformal")
     ->check(CLI::IsMember({"explicit", "implicit", "conformal"}))
     ->required();

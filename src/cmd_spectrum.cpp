@@ -12,13 +12,23 @@
 
 namespace lapmesh_cli {
 
-// Shared with cmd_reconstruct.cpp (which declares them too): -k parsing with the SPEC's
-// one-line error, and the progress line shown only when stderr is a terminal.
-long long spectral_k_from(const std::string& input, const std::string& text, long long n);
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer();
-void clear_progress_line();
-
 namespace {
+
+// The progress line of the eigensolver, shown only when stderr is a terminal.
+std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
+{
+  if(!::isatty(2)) return {};
+  return [](const lapmesh::Spectral_progress& p) {
+    std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
+                 p.elapsed_seconds);
+    std::fflush(stderr);
+  };
+}
+
+void clear_progress_line()
+{
+  if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
+}
 
 struct Spectrum_options
 {
@@ -32,19 +42,8 @@ void run(const Spectrum_options& o)
   const Mesh mesh = load_mesh(o.input);
   const long long n = (long long)num_vertices(mesh);
   const long long k = spectral_k_from(o.input, o.k, n);
-  lapmesh::Spectral_basis basis;
-  try {
-    basis = lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-      mesh, k,
-      lapmesh::parameters::spectral_progress(
-        spectral_progress_printer(),
-        lapmesh::parameters::vertex_area(area_from(o.area), lapmesh::parameters::laplacian(laplacian_from(o.laplacian)))));
-  } catch(const std::exception& e) {
-    clear_progress_line();
-    throw Failure(o.input + ": " + e.what());
-  }
-  clear_progress_line();
-  try {
+  const lapmesh::Spectral_basis basis = compute_spectral_basis(o.input, mesh, k, o.laplacian, o.area);
+  or_fail(o.output, [&] {
     lapmesh::io::write_atomically(o.output, [&](std::ostream& os) {
       os << "index,eigenvalue\n";
       for(long long i = 0; i < k; ++i) {
@@ -53,9 +52,7 @@ void run(const Spectrum_options& o)
         os << '\n';
       }
     });
-  } catch(const std::exception& e) {
-    throw Failure(o.output + ": " + e.what());
-  }
+  });
   if(!o.quiet)
     std::cout << o.input << ": " << n << " vertices; " << k << " smallest eigenvalues (" << o.laplacian << ", "
               << o.area << " area) in [" << basis.eigenvalues()[0] << ", " << basis.eigenvalues()[k - 1]
@@ -63,6 +60,25 @@ void run(const Spectrum_options& o)
 }
 
 } // namespace
+
+lapmesh::Spectral_basis compute_spectral_basis(const std::string& input, const Mesh& mesh, long long count,
+                                               const std::string& laplacian, const std::string& area)
+{
+  namespace LP = lapmesh::parameters;
+  try {
+    lapmesh::Spectral_basis basis = or_fail(input, [&] {
+      return lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
+        mesh, count,
+        LP::spectral_progress(spectral_progress_printer(),
+                              LP::vertex_area(area_from(area), LP::laplacian(laplacian_from(laplacian)))));
+    });
+    clear_progress_line();
+    return basis;
+  } catch(...) {
+    clear_progress_line();
+    throw;
+  }
+}
 
 long long spectral_k_from(const std::string& input, const std::string& text, long long n)
 {
@@ -82,21 +98,6 @@ long long spectral_k_from(const std::string& input, const std::string& text, lon
   return k;
 }
 
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
-{
-  if(!::isatty(2)) return {};
-  return [](const lapmesh::Spectral_progress& p) {
-    std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
-                 p.elapsed_seconds);
-    std::fflush(stderr);
-  };
-}
-
-void clear_progress_line()
-{
-  if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
-}
-
 void register_spectrum(CLI::App& app)
 {
   auto o = std::make_shared<Spectrum_options>();
@@ -104,8 +105,7 @@ void register_spectrum(CLI::App& app)
   cmd->footer("Output: .csv with the header index,eigenvalue and k rows, ascending, 17 significant digits.\n"
               "lambda_0 ~ 0 once per connected component; on a sphere of radius r, l(l+1)/r^2 with\n"
               "multiplicity 2l+1. Progress goes to stderr when it is a terminal.\n");
-  cmd->add_option("IN", o->input, "input mesh (.off, .obj, .ply, .stl)")->required();
-  cmd->add_option("-o,--output", o->output, "output file (.csv)")->required();
+  add_input_output(*cmd, o->input, o->output, "output file (.csv)");
   cmd->add_option("-k", o->k, "number of eigenvalues, 1 <= k <= number of vertices")->required();
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);

@@ -645,16 +645,22 @@ inline void write_mesh(const std::string& path, const Vertex_vectors& P,
   });
 }
 
+/// The triangles of an extracted mesh, in face order, as the writers take them.
+inline std::vector<std::array<std::size_t, 3>> triangle_list(const lapmesh::internal::Mesh_topology& t)
+{
+  std::vector<std::array<std::size_t, 3>> tris(std::size_t(t.num_faces));
+  for(std::size_t f = 0; f < tris.size(); ++f)
+    for(int a = 0; a < 3; ++a) tris[f][a] = std::size_t(t.triangles[3 * f + a]);
+  return tris;
+}
+
 /// Positions and triangles of a face graph in vertex-index order (the order in which
 /// triangles_to_mesh() added the vertices, for meshes it built).
 template <typename FaceGraph>
 std::pair<Vertex_vectors, std::vector<std::array<std::size_t, 3>>> mesh_arrays(const FaceGraph& g)
 {
   auto mesh = lapmesh::internal::extract_mesh(g, CGAL::parameters::default_values());
-  std::vector<std::array<std::size_t, 3>> tris(std::size_t(mesh.topology.num_faces));
-  for(std::size_t f = 0; f < tris.size(); ++f)
-    for(int a = 0; a < 3; ++a) tris[f][a] = std::size_t(mesh.topology.triangles[3 * f + a]);
-  return {std::move(mesh.positions), std::move(tris)};
+  return {std::move(mesh.positions), triangle_list(mesh.topology)};
 }
 
 } // namespace io
