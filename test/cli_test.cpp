@@ -19,7 +19,7 @@ struct Cli_run
   std::string out, err;
 };
 
-std::string tmp(const std::string& name) { return std::string(LAPMESH_TEST_TMP) + "/cli_" + name; }
+std::string tmp(const std::string& name) { return lapmesh_test::scratch_dir() + "/cli_" + name; }
 
 std::string slurp(const std::string& path)
 {

@@ -12,7 +12,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string tmp_path(const std::string& name) { return std::string(LAPMESH_TEST_TMP) + "/io_" + name; }
+std::string tmp_path(const std::string& name) { return lapmesh_test::scratch_dir() + "/io_" + name; }
 
 std::string write_text(const std::string& name, const std::string& text)
 {
@@ -200,7 +200,7 @@ TEST(Io, AtomicWritesLeaveNothingBehindOnFailure)
   std::string content;
   std::getline(in, content);
   EXPECT_EQ(content, "precious");  // untouched
-  for(const auto& entry : fs::directory_iterator(LAPMESH_TEST_TMP))
+  for(const auto& entry : fs::directory_iterator(lapmesh_test::scratch_dir()))
     EXPECT_EQ(entry.path().filename().string().find(".atomic.csv.tmp"), std::string::npos);
   EXPECT_THROW(lapmesh::io::write_atomically(tmp_path("no_such_dir/x.off"), [](std::ostream&) {}), lapmesh::Io_error);
   // a colour per vertex and a PLY with scalar properties

@@ -228,7 +228,7 @@ TEST(Spectral, FreeFunctionsNamedParametersAndPolyhedron)
 TEST(Spectral, SaveLoadRoundTripAndErrors)
 {
   const auto& b = sphere_basis();
-  const std::string path = std::string(LAPMESH_TEST_TMP) + "/sphere.basis";
+  const std::string path = lapmesh_test::scratch_dir() + "/sphere.basis";
   b.save(path);
   const auto c = lapmesh::Spectral_basis::load(path);
   EXPECT_EQ(c.size(), b.size());
@@ -262,7 +262,7 @@ struct Cli_run
 
 Cli_run run_cli(const std::string& args)
 {
-  const std::string errfile = std::string(LAPMESH_TEST_TMP) + "/spectral_cli.err";
+  const std::string errfile = lapmesh_test::scratch_dir() + "/spectral_cli.err";
   const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " 2>" + errfile + " >/dev/null").c_str());
   std::ifstream in(errfile);
   std::stringstream ss;
@@ -274,7 +274,7 @@ int count_lines(const std::string& s) { return int(std::count(s.begin(), s.end()
 
 std::string small_mesh()
 {
-  const std::string path = std::string(LAPMESH_TEST_TMP) + "/spectral_small.off";
+  const std::string path = lapmesh_test::scratch_dir() + "/spectral_small.off";
   const auto soup = lapmesh::icosphere(1, 1.0);  // 42 vertices
   std::vector<std::array<std::size_t, 3>> tris;
   for(const auto& t : soup.triangles) tris.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
@@ -290,7 +290,7 @@ TEST(SpectralCli, BadKIsOneLineAndNoOutput)
 {
   const std::string in = small_mesh();
   for(const std::string cmd : {"spectrum", "reconstruct"}) {
-    const std::string out = std::string(LAPMESH_TEST_TMP) + "/bad_k." + (cmd == "spectrum" ? "csv" : "off");
+    const std::string out = lapmesh_test::scratch_dir() + "/bad_k." + (cmd == "spectrum" ? "csv" : "off");
     for(const std::string k : {"0", "-3", "43", "1000"}) {
       std::filesystem::remove(out);
       const Cli_run r = run_cli(cmd + " " + in + " -o " + out + " -k " + k);
@@ -306,7 +306,7 @@ TEST(SpectralCli, BadKIsOneLineAndNoOutput)
 TEST(SpectralCli, SpectrumAndReconstructWork)
 {
   const std::string in = small_mesh();
-  const std::string csv = std::string(LAPMESH_TEST_TMP) + "/ev.csv";
+  const std::string csv = lapmesh_test::scratch_dir() + "/ev.csv";
   Cli_run r = run_cli("spectrum " + in + " -o " + csv + " -k 4");
   ASSERT_EQ(r.status, 0) << r.err;
   std::ifstream f(csv);
@@ -321,8 +321,8 @@ TEST(SpectralCli, SpectrumAndReconstructWork)
   EXPECT_NEAR(ev[3], ev[1], 1e-9 * ev[1]);
 
   // k = n reproduces the input; --save-basis then --load-basis gives the same result.
-  const std::string out = std::string(LAPMESH_TEST_TMP) + "/rec.off", out2 = std::string(LAPMESH_TEST_TMP) + "/rec2.off";
-  const std::string basis = std::string(LAPMESH_TEST_TMP) + "/small.basis";
+  const std::string out = lapmesh_test::scratch_dir() + "/rec.off", out2 = lapmesh_test::scratch_dir() + "/rec2.off";
+  const std::string basis = lapmesh_test::scratch_dir() + "/small.basis";
   r = run_cli("reconstruct " + in + " -o " + out + " -k 42 --save-basis " + basis);
   ASSERT_EQ(r.status, 0) << r.err;
   Mesh a, b, c;

@@ -12,7 +12,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 namespace lapmesh_test {
@@ -32,6 +34,21 @@ Graph to_mesh(const lapmesh::Triangle_soup& soup)
 
 /// Path of a mesh of CGAL's data set (libcgal-demo), unpacked at configure time.
 inline std::string cgal_mesh(const std::string& name) { return std::string(LAPMESH_CGAL_MESHES) + "/" + name; }
+
+#ifdef LAPMESH_TEST_TMP
+/// A scratch directory of the running test, created on first use. ctest runs every TEST in a
+/// process of its own, two at a time: fixed file names shared between tests would let
+/// concurrent tests overwrite each other's inputs and captured output.
+inline std::string scratch_dir()
+{
+  const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "outside_a_test";
+  std::replace(name.begin(), name.end(), '/', '_');
+  const std::string dir = std::string(LAPMESH_TEST_TMP) + "/" + name;
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+#endif
 
 /// Root-mean-square of a vector.
 template <typename Vector>
