@@ -10,7 +10,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
 JOBS="${JOBS:-$(nproc)}"
 
-PACKAGES=(build-essential cmake ccache pkg-config
+PACKAGES=(build-essential cmake ccache pkg-config doxygen
           libcgal-dev libcgal-demo libgmp-dev libmpfr-dev libboost-dev
           libeigen3-dev libspectra-dev libsuitesparse-dev libopenblas0 libtbb-dev
           libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev)

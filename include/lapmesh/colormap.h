@@ -18,13 +18,18 @@
 
 namespace lapmesh {
 
+/// A colour map for per-vertex scalars (the CLI's `--colormap`).
 enum class Colormap { jet, viridis, coolwarm, gray };
 
+/// An 8-bit RGB colour.
 struct Rgb
 {
-  std::uint8_t r = 0, g = 0, b = 0;
+  std::uint8_t r = 0; ///< red
+  std::uint8_t g = 0; ///< green
+  std::uint8_t b = 0; ///< blue
 };
 
+/// @brief returns the colour map named `s` (`jet`, `viridis`, `coolwarm`, `gray`), or nothing.
 inline std::optional<Colormap> parse_colormap(const std::string& s)
 {
   if(s == "jet") return Colormap::jet;
@@ -72,9 +77,11 @@ inline Rgb map_color(Colormap map, double x)
   }
 }
 
+/// The interval of values mapped onto the colour map (values outside are clamped).
 struct Value_range
 {
-  double min = 0, max = 1;
+  double min = 0; ///< value at the start of the colour map
+  double max = 1; ///< value at its end
 };
 
 /// The automatic range of `values`: [min, max] after discarding `clip_percent` percent of the

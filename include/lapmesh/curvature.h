@@ -29,7 +29,8 @@ struct Vertex_curvatures
 {
   Eigen::VectorXd mean;          ///< H, signed (outward normals: sphere has +1/r)
   Eigen::VectorXd gaussian;      ///< K, angle deficit over the vertex area
-  Eigen::VectorXd k1, k2;        ///< principal curvatures, k1 >= k2
+  Eigen::VectorXd k1;            ///< larger principal curvature, k1 = H + sqrt(max(H^2 - K, 0))
+  Eigen::VectorXd k2;            ///< smaller principal curvature, k2 = H - sqrt(max(H^2 - K, 0)) <= k1
   Eigen::VectorXd area;          ///< A_i of the chosen kind (the denominator of K)
   Vertex_vectors normal;         ///< unit area-weighted vertex normals
   Vertex_vectors laplacian;      ///< (L x)_i, the Laplacian of the positions (= -2 H n on smooth parts)
@@ -116,9 +117,18 @@ void write_if_given(const NamedParameters& np, Tag tag, const Vertices& vertices
 /// One pass over the faces and one gather per vertex; no matrix is assembled.
 /// @tparam ConcurrencyTag `CGAL::Sequential_tag` (default) or `CGAL::Parallel_tag`
 /// @tparam TriangleMesh a model of `FaceListGraph` whose faces are triangles
-/// @param np optional: `lapmesh::parameters::laplacian` (default cotangent),
-///   `lapmesh::parameters::vertex_area` (default barycentric), `CGAL::parameters::vertex_point_map`,
-///   `CGAL::parameters::vertex_index_map`
+/// @param tm the mesh: every vertex in a face, no zero-area face, manifold edges
+/// @param np an optional sequence of named parameters among the ones below
+///
+/// | named parameter | description | type | default |
+/// |---|---|---|---|
+/// | `lapmesh::parameters::laplacian` | the Laplacian of H | `lapmesh::Laplacian` | `Laplacian::cotangent` |
+/// | `lapmesh::parameters::vertex_area` | the area A_i dividing the cotangent sums and the angle deficit | `lapmesh::Vertex_area` | `Vertex_area::barycentric` (use `mixed` for accuracy) |
+/// | `CGAL::parameters::vertex_point_map` | the positions | readable vertex map to a point with `x()`, `y()`, `z()` | `get(CGAL::vertex_point, tm)` |
+/// | `CGAL::parameters::vertex_index_map` | the vertex numbering: a bijection onto 0..n-1 | readable vertex map to an integer | the position in `vertices(tm)` |
+///
+/// @return the curvatures, normals, areas and Laplacians, entry i = vertex i
+/// @warning computed in double precision whatever the kernel's number type.
 /// @throws Mesh_error for a zero-area face, a vertex with non-positive area, a vertex in no face,
 ///   non-manifold edges or non-finite coordinates, naming the element
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
@@ -134,6 +144,17 @@ Vertex_curvatures vertex_curvatures(const TriangleMesh& tm, const NamedParameter
 /// `vertex_min_curvature_map` (k2), `vertex_area_map`; plus CGAL's `vertex_normal_map`
 /// (value type constructible from three doubles, e.g. the kernel's Vector_3).
 /// Outputs without a map are not written. Other parameters as in vertex_curvatures().
+/// @param tm the mesh
+/// @param np named parameters: the output maps below, plus those of vertex_curvatures()
+///
+/// | named parameter | description | type | default |
+/// |---|---|---|---|
+/// | `lapmesh::parameters::vertex_mean_curvature_map` | receives H | writable vertex map, value from `double` | not written |
+/// | `lapmesh::parameters::vertex_gaussian_curvature_map` | receives K | writable vertex map, value from `double` | not written |
+/// | `lapmesh::parameters::vertex_max_curvature_map` | receives k1 | writable vertex map, value from `double` | not written |
+/// | `lapmesh::parameters::vertex_min_curvature_map` | receives k2 | writable vertex map, value from `double` | not written |
+/// | `lapmesh::parameters::vertex_area_map` | receives A_i | writable vertex map, value from `double` | not written |
+/// | `CGAL::parameters::vertex_normal_map` | receives the unit area-weighted normal | writable vertex map, value constructible from three doubles | not written |
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh, typename NamedParameters>
 void compute_vertex_curvatures(const TriangleMesh& tm, const NamedParameters& np)
 {
@@ -153,7 +174,9 @@ void compute_vertex_curvatures(const TriangleMesh& tm, const NamedParameters& np
 }
 
 /// @brief writes the signed mean curvature H into `mean_curvature_map` (skips the angle pass).
-/// Named parameters as in vertex_curvatures().
+/// @param tm the mesh
+/// @param mean_curvature_map writable vertex map receiving H
+/// @param np named parameters as in vertex_curvatures()
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh, typename VertexCurvatureMap,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curvature_map,
@@ -164,6 +187,9 @@ void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curv
 }
 
 /// @brief writes the angle-deficit Gaussian curvature K into `gaussian_curvature_map`.
+/// @param tm the mesh
+/// @param gaussian_curvature_map writable vertex map receiving K (a density: deficit / A_i)
+/// @param np named parameters as in vertex_curvatures()
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh, typename VertexCurvatureMap,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gaussian_curvature_map,
@@ -173,6 +199,10 @@ void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gauss
 }
 
 /// @brief writes the principal curvatures k1 >= k2 into the two maps.
+/// @param tm the mesh
+/// @param max_curvature_map writable vertex map receiving k1
+/// @param min_curvature_map writable vertex map receiving k2
+/// @param np named parameters as in vertex_curvatures()
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh, typename VertexCurvatureMap,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 void compute_principal_curvatures(const TriangleMesh& tm, VertexCurvatureMap max_curvature_map,

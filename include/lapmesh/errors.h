@@ -16,9 +16,12 @@ namespace lapmesh {
 class Mesh_error : public std::runtime_error
 {
 public:
+  /// The kind of mesh element a problem is attached to.
   enum class Element { none, vertex, face, edge };
 
+  /// A problem attached to no particular element.
   explicit Mesh_error(const std::string& what) : std::runtime_error(what) {}
+  /// A problem attached to the element `e` of index `index` in the input.
   Mesh_error(const std::string& what, Element e, std::int64_t index)
     : std::runtime_error(what), m_element(e), m_index(index)
   {}

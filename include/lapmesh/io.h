@@ -56,10 +56,11 @@ public:
 
 namespace io {
 
+/// A mesh as read from a file, before triangulation and validation.
 struct Polygon_soup
 {
-  std::vector<std::array<double, 3>> points;
-  std::vector<std::vector<std::size_t>> polygons;
+  std::vector<std::array<double, 3>> points;       ///< vertex positions, in file order
+  std::vector<std::vector<std::size_t>> polygons;  ///< faces as indices into `points`
 };
 
 /// The lower-case extension of a path without the dot ("off", "ply", ...).
@@ -71,6 +72,7 @@ inline std::string extension_of(const std::string& path)
   return e;
 }
 
+/// @brief tells whether `ext` (lower case, with the dot: `.off`) is a format lapmesh reads and writes.
 inline bool is_supported_mesh_extension(const std::string& ext)
 {
   return ext == "off" || ext == "obj" || ext == "ply" || ext == "stl";
@@ -529,8 +531,8 @@ Soup_report read_triangle_mesh(const std::string& path, MutableFaceGraph& g)
 /// (PLY, COFF).
 struct Vertex_attributes
 {
-  std::vector<std::pair<std::string, std::vector<double>>> scalars;
-  std::vector<Rgb> colors;
+  std::vector<std::pair<std::string, std::vector<double>>> scalars;  ///< (property name, one value per vertex)
+  std::vector<Rgb> colors;  ///< one colour per vertex, or empty for none
 };
 
 /// Writes through a temporary file in the destination directory and renames it over

@@ -23,7 +23,9 @@
 
 namespace lapmesh {
 
+/// The direction of the displacements: a Gaussian 3-vector, or a Gaussian scalar times the vertex normal.
 enum class Noise_direction { isotropic, normal };
+/// The length that the noise level multiplies to give sigma.
 enum class Noise_scale { mean_edge_length, bounding_box_diagonal };
 
 /// Noise_direction; default isotropic.
@@ -35,11 +37,13 @@ LAPMESH_NAMED_PARAMETER(noise_scale)
 class Normal_sampler
 {
 public:
+  /// Seeds the generator.
   explicit Normal_sampler(std::uint64_t seed) : m_rng(seed) {}
 
   /// Uniform in [0, 1) from the top 53 bits.
   double uniform() { return double(m_rng() >> 11) * (1.0 / 9007199254740992.0); }
 
+  /// The next standard normal sample.
   double operator()()
   {
     if(m_has_spare) {
@@ -102,6 +106,7 @@ inline double add_noise(const Mesh_topology& t, Positions& P, double level, Nois
 /// \ingroup PkgLapmeshNoise
 /// @brief adds seeded Gaussian noise to the vertex positions of `tm`; returns sigma.
 ///
+/// @param tm the mesh; positions are written through the vertex point map
 /// @param level sigma = level * mean edge length (or * bounding-box diagonal)
 /// @param np named parameters:
 ///   - `CGAL::parameters::random_seed` (unsigned; default 0)

@@ -36,7 +36,9 @@ enum class Vertex_area {
   mixed         ///< Meyer et al. 2003 mixed cells; positive, sums to the surface area
 };
 
+/// @brief returns the name of `k` as the CLI spells it (`uniform`, `cotangent`).
 inline const char* to_string(Laplacian k) { return k == Laplacian::uniform ? "uniform" : "cotangent"; }
+/// @brief returns the name of `a` as the CLI spells it (`barycentric`, `voronoi`, `mixed`).
 inline const char* to_string(Vertex_area a)
 {
   switch(a) {
@@ -45,12 +47,14 @@ inline const char* to_string(Vertex_area a)
     default: return "mixed";
   }
 }
+/// @brief returns the Laplacian named `s`, or nothing for an unknown name.
 inline std::optional<Laplacian> parse_laplacian(const std::string& s)
 {
   if(s == "uniform") return Laplacian::uniform;
   if(s == "cotangent") return Laplacian::cotangent;
   return std::nullopt;
 }
+/// @brief returns the vertex area named `s`, or nothing for an unknown name.
 inline std::optional<Vertex_area> parse_vertex_area(const std::string& s)
 {
   if(s == "barycentric") return Vertex_area::barycentric;

@@ -21,10 +21,11 @@
 
 namespace lapmesh {
 
+/// Vertex positions and triangles (indices into `points`), consistently oriented.
 struct Triangle_soup
 {
-  std::vector<std::array<double, 3>> points;
-  std::vector<std::array<int, 3>> triangles;
+  std::vector<std::array<double, 3>> points;  ///< vertex positions
+  std::vector<std::array<int, 3>> triangles;  ///< counter-clockwise seen from outside
 };
 
 /// Builds the soup into an (empty or not) mutable face graph; vertex i of the soup becomes

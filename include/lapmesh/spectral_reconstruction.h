@@ -77,6 +77,7 @@ public:
 
   /// @brief computes the k smallest eigenpairs of the Laplacian of `tm`.
   /// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag` (assembly only)
+  /// @param tm the mesh (a `FaceListGraph` with triangle faces)
   /// @param k number of eigenpairs, 1 <= k <= num_vertices(tm)
   /// @param np optional named parameters:
   ///   - `lapmesh::parameters::laplacian` (default cotangent), `vertex_area` (default barycentric)
@@ -126,12 +127,15 @@ public:
   Eigen::Index num_vertices() const { return m_mass.size(); }
   /// The k asked for at construction (the file keeps it).
   Eigen::Index requested() const { return m_requested; }
+  /// The eigenvalues, ascending (size() of them).
   const Eigen::VectorXd& eigenvalues() const { return m_values; }
   /// n x size(), M-orthonormal columns.
   const Eigen::MatrixXd& eigenvectors() const { return m_vectors; }
   /// The diagonal of M.
   const Eigen::VectorXd& mass() const { return m_mass; }
+  /// The Laplacian the basis was computed with.
   Laplacian laplacian() const { return m_laplacian; }
+  /// The vertex area of its mass matrix.
   Vertex_area vertex_area() const { return m_area; }
   /// Shift-invert solves used (0 for the dense path or a loaded basis).
   long long operations() const { return m_operations; }
