@@ -72,7 +72,7 @@ inline std::string extension_of(const std::string& path)
   return e;
 }
 
-/// @brief tells whether `ext` (lower case, with the dot: `.off`) is a format lapmesh reads and writes.
+/// @brief tells whether `ext` (lower case, without the dot, as from extension_of()) is a format lapmesh reads and writes.
 inline bool is_supported_mesh_extension(const std::string& ext)
 {
   return ext == "off" || ext == "obj" || ext == "ply" || ext == "stl";
