@@ -13,13 +13,17 @@ JOBS="${JOBS:-$(nproc)}"
 PACKAGES=(build-essential cmake ccache pkg-config doxygen
           libcgal-dev libcgal-demo libgmp-dev libmpfr-dev libboost-dev
           libeigen3-dev libspectra-dev libsuitesparse-dev libopenblas0 libtbb-dev
-          libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev)
+          libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
+          libcpp-httplib-dev nlohmann-json3-dev chromium)
 
 setup() {
   local missing=()
   for p in "${PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
+  # The viewer page is built with npm (node >= 20): take Debian's only when there is none
+  # (e.g. from nodesource), whose npm package would conflict with it.
+  command -v npm >/dev/null 2>&1 || missing+=(nodejs npm)
   if [ ${#missing[@]} -gt 0 ]; then
     echo "lapmesh: installing ${missing[*]}" >&2
     local sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"

@@ -72,6 +72,7 @@ void register_spectrum(CLI::App& app);
 void register_reconstruct(CLI::App& app);
 void register_smooth(CLI::App& app);
 void register_noise(CLI::App& app);
+void register_view(CLI::App& app);  // cmd_view.cpp, when built with LAPMESH_HAS_VIEWER
 
 } // namespace lapmesh_cli
 

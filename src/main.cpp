@@ -18,6 +18,9 @@ int main(int argc, char** argv)
   lapmesh_cli::register_reconstruct(app);
   lapmesh_cli::register_smooth(app);
   lapmesh_cli::register_noise(app);
+#ifdef LAPMESH_HAS_VIEWER
+  lapmesh_cli::register_view(app);
+#endif
 
   try {
     app.parse(argc, argv);

@@ -68,3 +68,23 @@ TEST(Colormap, ParseRangeAndColorize)
   EXPECT_EQ(lapmesh::parse_colormap("diverging"), lapmesh::Colormap::coolwarm);
   EXPECT_FALSE(lapmesh::parse_colormap("rainbow"));
 }
+
+TEST(Colormap, SymmetricRange)
+{
+  // One sign only: [-max|v|, max|v|], unlike auto_range which keeps [min, max].
+  const auto r = lapmesh::symmetric_range({1, 2, 3, std::nan("")});
+  EXPECT_EQ(r.min, -3);
+  EXPECT_EQ(r.max, 3);
+  const auto neg = lapmesh::symmetric_range({-4, -1});
+  EXPECT_EQ(neg.min, -4);
+  EXPECT_EQ(neg.max, 4);
+  // Clipping as in auto_range: 10% of 11 values drops one at each end.
+  std::vector<double> v = {-100, -1, 0, 0, 0, 0, 0, 0, 0, 2, 50};
+  const auto clipped = lapmesh::symmetric_range(v, 10);
+  EXPECT_EQ(clipped.max, 2);
+  EXPECT_EQ(clipped.min, -2);
+  const auto zero = lapmesh::symmetric_range({0, 0});
+  EXPECT_EQ(zero.min, -0.5);
+  EXPECT_EQ(zero.max, 0.5);
+  EXPECT_THROW(lapmesh::symmetric_range(v, 50), std::invalid_argument);
+}

@@ -84,23 +84,34 @@ struct Value_range
   double max = 1; ///< value at its end
 };
 
-/// The automatic range of `values`: [min, max] after discarding `clip_percent` percent of the
-/// values at each end (0 keeps all); when the clipped range has both signs it is made
-/// symmetric about 0, so that 0 sits in the middle of a diverging map.
-/// Non-finite values are ignored. A constant signal gets a unit-wide range around it.
-inline Value_range auto_range(const std::vector<double>& values, double clip_percent = 0.0)
+namespace internal {
+/// [min, max] of the finite values after discarding clip_percent percent at each end;
+/// std::nullopt when no value is finite.
+inline std::optional<Value_range> clipped_extremes(const std::vector<double>& values, double clip_percent)
 {
   if(!(clip_percent >= 0 && clip_percent < 50)) throw std::invalid_argument("clip percentage must be in [0, 50)");
   std::vector<double> v;
   v.reserve(values.size());
   for(double x : values)
     if(std::isfinite(x)) v.push_back(x);
-  if(v.empty()) return {0.0, 1.0};
+  if(v.empty()) return std::nullopt;
   const std::size_t k = std::size_t(std::floor(clip_percent / 100.0 * double(v.size() - 1)));
   std::nth_element(v.begin(), v.begin() + k, v.end());
-  double lo = v[k];
+  const double lo = v[k];
   std::nth_element(v.begin(), v.end() - 1 - k, v.end());
-  double hi = v[v.size() - 1 - k];
+  return Value_range{lo, v[v.size() - 1 - k]};
+}
+} // namespace internal
+
+/// The automatic range of `values`: [min, max] after discarding `clip_percent` percent of the
+/// values at each end (0 keeps all); when the clipped range has both signs it is made
+/// symmetric about 0, so that 0 sits in the middle of a diverging map.
+/// Non-finite values are ignored. A constant signal gets a unit-wide range around it.
+inline Value_range auto_range(const std::vector<double>& values, double clip_percent = 0.0)
+{
+  const std::optional<Value_range> e = internal::clipped_extremes(values, clip_percent);
+  if(!e) return {0.0, 1.0};
+  double lo = e->min, hi = e->max;
   if(lo < 0 && hi > 0) {
     const double a = std::max(-lo, hi);
     lo = -a;
@@ -111,6 +122,18 @@ inline Value_range auto_range(const std::vector<double>& values, double clip_per
     hi += 0.5;
   }
   return {lo, hi};
+}
+
+/// The range [-a, a] symmetric about 0, with a the largest |value| after discarding
+/// `clip_percent` percent of the values at each end (as auto_range()): puts 0 in the middle
+/// of a diverging map also when the values have one sign. Non-finite values are ignored;
+/// a = 0.5 when no value is finite or all are 0.
+inline Value_range symmetric_range(const std::vector<double>& values, double clip_percent = 0.0)
+{
+  const std::optional<Value_range> e = internal::clipped_extremes(values, clip_percent);
+  double a = e ? std::max(std::abs(e->min), std::abs(e->max)) : 0.0;
+  if(!(a > 0)) a = 0.5;
+  return {-a, a};
 }
 
 /// Parses "MIN:MAX" (MIN < MAX, finite); std::nullopt if malformed.

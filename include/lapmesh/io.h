@@ -570,11 +570,12 @@ inline void put_double(std::ostream& os, double x)
   os.write(buf, len);
 }
 
-/// Writes vertices P (n x 3) and triangles to `path` in the format of its extension.
-inline void write_mesh(const std::string& path, const Vertex_vectors& P,
+/// Writes vertices P (n x 3) and triangles to the stream `os` in `format` ("off", "ply",
+/// "obj" or "stl", lower-case), exactly as write_mesh() writes a file of that extension.
+inline void write_mesh(std::ostream& os, const std::string& format, const Vertex_vectors& P,
                        const std::vector<std::array<std::size_t, 3>>& tris, const Vertex_attributes& attributes = {})
 {
-  const std::string ext = extension_of(path);
+  const std::string& ext = format;
   if(!is_supported_mesh_extension(ext))
     throw Io_error("unsupported output format '." + ext + "' (expected .off, .obj, .ply or .stl)");
   const std::size_t n = std::size_t(P.rows());
@@ -583,7 +584,7 @@ inline void write_mesh(const std::string& path, const Vertex_vectors& P,
   for(const auto& s : attributes.scalars)
     if(s.second.size() != n) throw std::invalid_argument("one value per vertex expected for " + s.first);
 
-  write_atomically(path, [&](std::ostream& os) {
+  {
     auto put_point = [&](std::size_t i) {
       put_double(os, P(Eigen::Index(i), 0)); os << ' ';
       put_double(os, P(Eigen::Index(i), 1)); os << ' ';
@@ -644,7 +645,22 @@ inline void write_mesh(const std::string& path, const Vertex_vectors& P,
       }
       os << "endsolid lapmesh\n";
     }
-  });
+  }
+}
+
+/// Writes vertices P (n x 3) and triangles to `path` in the format of its extension
+/// (atomically: a failure leaves no partial file).
+inline void write_mesh(const std::string& path, const Vertex_vectors& P,
+                       const std::vector<std::array<std::size_t, 3>>& tris, const Vertex_attributes& attributes = {})
+{
+  const std::string ext = extension_of(path);
+  if(!is_supported_mesh_extension(ext))
+    throw Io_error("unsupported output format '." + ext + "' (expected .off, .obj, .ply or .stl)");
+  const std::size_t n = std::size_t(P.rows());
+  if(!attributes.colors.empty() && attributes.colors.size() != n) throw std::invalid_argument("one colour per vertex expected");
+  for(const auto& s : attributes.scalars)
+    if(s.second.size() != n) throw std::invalid_argument("one value per vertex expected for " + s.first);
+  write_atomically(path, [&](std::ostream& os) { write_mesh(os, ext, P, tris, attributes); });
 }
 
 /// The triangles of an extracted mesh, in face order, as the writers take them.
