@@ -73,6 +73,7 @@ void register_reconstruct(CLI::App& app);
 void register_smooth(CLI::App& app);
 void register_noise(CLI::App& app);
 void register_view(CLI::App& app);  // cmd_view.cpp, when built with LAPMESH_HAS_VIEWER
+void register_denoise_study(CLI::App& app);
 
 } // namespace lapmesh_cli
 

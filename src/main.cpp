@@ -21,6 +21,7 @@ int main(int argc, char** argv)
 #ifdef LAPMESH_HAS_VIEWER
   lapmesh_cli::register_view(app);
 #endif
+  lapmesh_cli::register_denoise_study(app);
 
   try {
     app.parse(argc, argv);

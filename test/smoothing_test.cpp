@@ -8,7 +8,9 @@
 #include <lapmesh/noise.h>
 #include <lapmesh/io.h>
 
+#include <CGAL/Eigen_solver_traits.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/smooth_shape.h>
 
 #include <Eigen/Dense>
 
@@ -289,6 +291,78 @@ TEST(Smoothing, VolumeRestorationKeepsVolumeAndCentroid)
   }
 }
 
+// CGAL 5.5.1's smooth_shape solves (M/2 - 2t C_0) P' = (M/2) P: its mass is area/6 per face
+// corner (half the barycentric area) and its weights (Edge_cotangent_weight: cot a + cot b
+// inside, a single cot on the border) are twice lapmesh's C, so CGAL's time t is lapmesh's
+// lambda = 4t. On closed meshes with no constrained vertex it rescales about the volume centroid
+// to the previous volume after each step, which is what restore_volume does. Constrained rows
+// are identity rows. Its default solver is BiCGSTAB + ILUT; with a direct solver (SparseLU:
+// the constrained rows make the matrix unsymmetric) both must agree to round-off.
+TEST(Smoothing, ConformalFlowAgreesWithCgalSmoothShape)
+{
+  using Lu_solver = CGAL::Eigen_solver_traits<
+    Eigen::SparseLU<CGAL::Eigen_sparse_matrix<double>::EigenType, Eigen::COLAMDOrdering<int>>>;
+  auto max_difference = [](const Mesh& a, const Mesh& b) { return (positions(a) - positions(b)).cwiseAbs().maxCoeff(); };
+  auto diagonal = [](const Mesh& m) {
+    const Eigen::MatrixXd P = positions(m);
+    return (P.colwise().maxCoeff() - P.colwise().minCoeff()).norm();
+  };
+  {
+    // Open patch, border constrained in CGAL (lapmesh fixes the border anyway): no rescaling.
+    const Mesh input = to_mesh(bumpy_patch(14));
+    auto border = get(CGAL::dynamic_vertex_property_t<bool>(), input);
+    for(auto v : vertices(input)) put(border, v, input.is_border(v));
+    const double t = 0.003;
+    Mesh cgal = input, cgal_default = input, ours = input;
+    CGAL::Polygon_mesh_processing::smooth_shape(
+      cgal, t, CGAL::parameters::number_of_iterations(5).vertex_is_constrained_map(border).sparse_linear_solver(Lu_solver()));
+    CGAL::Polygon_mesh_processing::smooth_shape(
+      cgal_default, t, CGAL::parameters::number_of_iterations(5).vertex_is_constrained_map(border));
+    lapmesh::smooth_conformal_flow(ours, 4 * t, CGAL::parameters::number_of_iterations(5));
+    const double diag = diagonal(input);
+    std::cout << "open patch: moved " << max_difference(ours, input) / diag << ", |ours - CGAL LU| " << max_difference(ours, cgal) / diag
+              << ", |ours - CGAL BiCGSTAB| " << max_difference(ours, cgal_default) / diag << " (/ bbox diagonal)\n";
+    EXPECT_GT(max_difference(ours, input), 1e-2 * diag);  // it moved
+    EXPECT_LE(max_difference(ours, cgal), 1e-12 * diag);
+    EXPECT_LE(max_difference(ours, cgal_default), 1e-8 * diag);
+    double border_moved = 0;
+    for(auto v : vertices(input))
+      if(input.is_border(v)) border_moved = std::max(border_moved, std::sqrt(CGAL::squared_distance(cgal_default.point(v), input.point(v))));
+    std::cout << "open patch: CGAL (BiCGSTAB) moved constrained vertices by up to " << border_moved / diag << " / diagonal\n";
+  }
+  {
+    // Closed mesh, no constraints: CGAL rescales to the previous volume about the volume centroid.
+    const Mesh input = to_mesh(lapmesh::bumpy_sphere(3));
+    const double t = 0.002;
+    Mesh cgal = input, ours = input;
+    CGAL::Polygon_mesh_processing::smooth_shape(cgal, t, CGAL::parameters::number_of_iterations(5).sparse_linear_solver(Lu_solver()));
+    lapmesh::smooth_conformal_flow(ours, 4 * t, LP::restore_volume(true).number_of_iterations(5));
+    const double diag = diagonal(input);
+    std::cout << "closed bumpy sphere: moved " << max_difference(ours, input) / diag << ", |ours - CGAL LU| "
+              << max_difference(ours, cgal) / diag << " (/ bbox diagonal)\n";
+    EXPECT_GT(max_difference(ours, input), 1e-2 * diag);
+    EXPECT_LE(max_difference(ours, cgal), 1e-12 * diag);
+  }
+  {
+    // Closed mesh with two constrained vertices: CGAL does not rescale then (one constrained
+    // vertex would be its scaling anchor); the constrained rows are identity rows, so with a
+    // direct solver they stay bitwise, and the flow matches lapmesh's Dirichlet solve.
+    const Mesh input = to_mesh(lapmesh::bumpy_sphere(3));
+    auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), input);
+    for(auto v : vertices(input)) put(constrained, v, v.idx() == 0 || v.idx() == 7);
+    const double t = 0.002;
+    Mesh cgal = input, ours = input;
+    CGAL::Polygon_mesh_processing::smooth_shape(
+      cgal, t, CGAL::parameters::number_of_iterations(5).vertex_is_constrained_map(constrained).sparse_linear_solver(Lu_solver()));
+    lapmesh::smooth_conformal_flow(ours, 4 * t, CGAL::parameters::number_of_iterations(5).vertex_is_constrained_map(constrained));
+    const double diag = diagonal(input);
+    std::cout << "closed, 2 constrained: |ours - CGAL LU| " << max_difference(ours, cgal) / diag << " (/ bbox diagonal)\n";
+    EXPECT_LE(max_difference(ours, cgal), 1e-12 * diag);
+    for(auto v : vertices(input))
+      if(get(constrained, v)) EXPECT_TRUE(cgal.point(v) == input.point(v));
+  }
+}
+
 TEST(Noise, SameSeedSameNoiseDifferentSeedDifferentNoise)
 {
   const Mesh input = to_mesh(lapmesh::icosphere(3));
@@ -385,7 +459,7 @@ struct Run_result
 
 Run_result run_cli(const std::string& args)
 {
-  const std::string err_path = std::string(LAPMESH_TEST_TMP) + "/smooth_stderr.txt";
+  const std::string err_path = lapmesh_test::scratch_dir() + "/smooth_stderr.txt";
   const std::string cmd = std::string(LAPMESH_CLI) + " " + args + " >/dev/null 2>" + err_path;
   const int raw = std::system(cmd.c_str());
   std::ifstream in(err_path);
@@ -396,7 +470,7 @@ Run_result run_cli(const std::string& args)
 
 std::string write_sphere()
 {
-  const std::string path = std::string(LAPMESH_TEST_TMP) + "/smooth_in.off";
+  const std::string path = lapmesh_test::scratch_dir() + "/smooth_in.off";
   const Mesh m = to_mesh(lapmesh::icosphere(2));
   const auto [P, tris] = lapmesh::io::mesh_arrays(m);
   lapmesh::io::write_mesh(path, P, tris);
@@ -408,7 +482,7 @@ std::string write_sphere()
 TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
 {
   const std::string in = write_sphere();
-  const std::string out = std::string(LAPMESH_TEST_TMP) + "/smooth_out.off";
+  const std::string out = lapmesh_test::scratch_dir() + "/smooth_out.off";
   const std::vector<std::string> bad = {
     "--lambda 0 --iterations 3",      "--lambda -0.5 --iterations 3", "--lambda nan --iterations 3",
     "--lambda inf --iterations 3",    "--lambda abc --iterations 3",  "--lambda 0.01 --iterations 0",
@@ -427,7 +501,7 @@ TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
 TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
 {
   const std::string in = write_sphere();
-  const std::string out = std::string(LAPMESH_TEST_TMP) + "/smooth_ok.off";
+  const std::string out = lapmesh_test::scratch_dir() + "/smooth_ok.off";
   std::filesystem::remove(out);
   Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 0.001 --iterations 2");
   EXPECT_EQ(r.status, 0) << r.err;
@@ -439,7 +513,7 @@ TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
   lapmesh::io::read_triangle_mesh(out, got);
   EXPECT_LE((positions(got) - positions(expected)).cwiseAbs().maxCoeff(), 1e-15);
 
-  const std::string n1 = std::string(LAPMESH_TEST_TMP) + "/noise1.off", n2 = std::string(LAPMESH_TEST_TMP) + "/noise2.off";
+  const std::string n1 = lapmesh_test::scratch_dir() + "/noise1.off", n2 = lapmesh_test::scratch_dir() + "/noise2.off";
   EXPECT_EQ(run_cli("noise " + in + " -o " + n1 + " --level 0.1 --seed 5").status, 0);
   EXPECT_EQ(run_cli("noise " + in + " -o " + n2 + " --level 0.1 --seed 5").status, 0);
   std::ifstream a(n1), b(n2);

@@ -7,6 +7,8 @@
 #include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/shapes.h>
 
+#include <CGAL/Eigen_solver_traits.h>
+#include <CGAL/Polygon_mesh_processing/smooth_shape.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -102,8 +104,40 @@ void BM_ImplicitSurfaceMesh(benchmark::State& state)
   }
 }
 
+// Conformal flow against CGAL's smooth_shape on the same closed torus, time and iterations
+// (10): CGAL's time t is lapmesh's lambda = 4t (CGAL's mass is half the barycentric area and
+// its weights are twice lapmesh's C), and CGAL rescales to the volume, as restore_volume does.
+// Arg 1: 0 lapmesh (default solver), 1 lapmesh with Eigen LDL^T, 2 CGAL with Eigen
+// SimplicialLDLT traits, 3 CGAL with its default BiCGSTAB + ILUT.
+void BM_ConformalVsSmoothShape(benchmark::State& state)
+{
+  const int thousands = int(state.range(0));
+  const int nv = int(std::lround(std::sqrt(thousands * 1000.0 / 2.5))), nu = int(std::lround(thousands * 1000.0 / nv));
+  Mesh input;
+  lapmesh::make_mesh(lapmesh::torus(nu, nv, 1.0, 0.4), input);
+  const double lambda = lapmesh::scale_free_time_step(input, 1.0), t = lambda / 4;
+  using Ldlt = CGAL::Eigen_solver_traits<Eigen::SimplicialLDLT<CGAL::Eigen_sparse_matrix<double>::EigenType>>;
+  for(auto _ : state) {
+    state.PauseTiming();
+    Mesh m = input;
+    state.ResumeTiming();
+    switch(state.range(1)) {
+      case 0: lapmesh::smooth_conformal_flow(m, lambda, lapmesh::parameters::restore_volume(true).number_of_iterations(10)); break;
+      case 1:
+        lapmesh::smooth_conformal_flow(
+          m, lambda, lapmesh::parameters::use_cholmod(false, lapmesh::parameters::restore_volume(true)).number_of_iterations(10));
+        break;
+      case 2:
+        CGAL::Polygon_mesh_processing::smooth_shape(m, t, CGAL::parameters::number_of_iterations(10).sparse_linear_solver(Ldlt()));
+        break;
+      default: CGAL::Polygon_mesh_processing::smooth_shape(m, t, CGAL::parameters::number_of_iterations(10));
+    }
+  }
+}
+
 } // namespace
 
+BENCHMARK(BM_ConformalVsSmoothShape)->ArgsProduct({{43, 100}, {0, 1, 2, 3}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_Implicit)->ArgsProduct({{100, 250, 1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
 BENCHMARK(BM_ImplicitReuse)->ArgsProduct({{100, 250, 1000}, {0}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ImplicitSurfaceMesh)->Arg(250)->Unit(benchmark::kMillisecond)->Iterations(1);

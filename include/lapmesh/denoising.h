@@ -1,0 +1,418 @@
+// lapmesh — denoising: how far a mesh is from a clean reference with the same connectivity,
+// and a study driver that adds seeded noise, smooths, and measures after every iteration.
+//
+// Deviation from the reference (all lengths divided by the reference's bounding-box diagonal):
+//   rms_distance        sqrt(mean_i |p_i - q_i|^2), vertex to corresponding vertex
+//   hausdorff_distance  symmetric: max of CGAL's approximate_Hausdorff_distance both ways, with
+//                       deterministic grid sampling (vertices, edges and faces) of spacing
+//                       `hausdorff_spacing` x the larger mean edge length of the two meshes
+//   normal_angle_error  mean over vertices of the angle (degrees) between the area-weighted
+//                       vertex normals (SPEC §1: normalised sum of the face cross products)
+//   volume_change       (V - V_ref) / |V_ref| of the enclosed volume; NaN for open meshes
+//
+// The study runs every (noise level, scheme, Laplacian, time step) once for the full number
+// of iterations and measures inside the per-iteration callback of the smoothing engine, so an
+// error-versus-iteration curve costs one smoothing run, not one per iteration count.
+#ifndef LAPMESH_DENOISING_H
+#define LAPMESH_DENOISING_H
+
+#include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/smoothing_engine.h>
+#include <lapmesh/laplacian.h>
+#include <lapmesh/noise.h>
+#include <lapmesh/parameters.h>
+
+#include <CGAL/Polygon_mesh_processing/distance.h>
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+
+/// How far a mesh is from a reference with the same connectivity. Lengths are relative to the
+/// bounding-box diagonal of the reference.
+struct Mesh_deviation
+{
+  double rms_distance = 0;        ///< RMS of the vertex-to-vertex distances / diagonal
+  double hausdorff_distance = 0;  ///< symmetric approximate Hausdorff distance / diagonal
+  double normal_angle_error = 0;  ///< mean angle between area-weighted vertex normals, degrees
+  double volume_change = std::numeric_limits<double>::quiet_NaN();  ///< (V - V_ref)/|V_ref|; NaN if open
+};
+
+/// double; default 1: grid spacing of the Hausdorff sampling, in units of the reference's
+/// mean edge length (vertices are always sampled).
+LAPMESH_NAMED_PARAMETER(hausdorff_spacing)
+
+namespace internal {
+
+/// Measures positions P (same topology as the reference) against the reference.
+class Deviation_meter
+{
+public:
+  using Kernel = CGAL::Simple_cartesian<double>;
+  using Sm = CGAL::Surface_mesh<Kernel::Point_3>;
+
+  Deviation_meter(const Mesh_topology& t, const Positions& reference, double hausdorff_spacing = 1.0)
+      : m_t(&t), m_reference(reference)
+  {
+    if(reference.rows() != t.num_vertices) throw std::invalid_argument("the reference has the wrong number of vertices");
+    if(!(hausdorff_spacing > 0) || !std::isfinite(hausdorff_spacing))
+      throw std::invalid_argument("the Hausdorff grid spacing must be a positive number");
+    const Eigen::RowVector3d lo = reference.colwise().minCoeff(), hi = reference.colwise().maxCoeff();
+    m_diagonal = (hi - lo).norm();
+    if(!(m_diagonal > 0)) throw Mesh_error("the reference mesh has a zero bounding box");
+    m_closed = t.num_boundary_edges == 0;
+    if(m_closed) {
+      Eigen::Vector3d c;
+      volume_and_centroid(t, reference, m_volume, c);
+    }
+    m_reference_normals = vertex_normals(reference);
+    m_spacing_factor = hausdorff_spacing;
+    m_spacing = hausdorff_spacing * mean_edge_length(t, reference);
+    build(m_reference_mesh, reference);
+    build(m_mesh, reference);
+  }
+
+  double diagonal() const { return m_diagonal; }
+  bool closed() const { return m_closed; }
+
+  /// RMS vertex distance / diagonal (cheap: no sampling).
+  double rms_distance(const Positions& P) const
+  {
+    return std::sqrt((P - m_reference).rowwise().squaredNorm().mean()) / m_diagonal;
+  }
+
+  Mesh_deviation measure(const Positions& P)
+  {
+    if(P.rows() != m_t->num_vertices) throw std::invalid_argument("positions of the wrong size");
+    Mesh_deviation d;
+    d.rms_distance = rms_distance(P);
+    if(!P.allFinite()) {
+      d.hausdorff_distance = d.normal_angle_error = d.volume_change = std::numeric_limits<double>::quiet_NaN();
+      d.rms_distance = std::numeric_limits<double>::infinity();
+      return d;
+    }
+    const Positions N = vertex_normals(P);
+    double angle_sum = 0;
+    for(Index i = 0; i < P.rows(); ++i) {
+      const Eigen::Vector3d a = N.row(i), b = m_reference_normals.row(i);
+      angle_sum += std::atan2(a.cross(b).norm(), a.dot(b));
+    }
+    d.normal_angle_error = angle_sum / double(P.rows()) * 180.0 / M_PI;
+    if(m_closed) {
+      double V;
+      Eigen::Vector3d c;
+      volume_and_centroid(*m_t, P, V, c);
+      d.volume_change = (V - m_volume) / std::abs(m_volume);
+    }
+    auto vpm = get(CGAL::vertex_point, m_mesh);
+    for(Index i = 0; i < P.rows(); ++i) put(vpm, Sm::Vertex_index(std::uint32_t(i)), Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
+    namespace PMP = CGAL::Polygon_mesh_processing;
+    // The grid follows the larger of the two meshes' mean edge lengths, so that a blown-up
+    // mesh (explicit steps above the stability bound) is not sampled with millions of points.
+    const double spacing = std::max(m_spacing, m_spacing_factor * mean_edge_length(*m_t, P));
+    const auto sampling = CGAL::parameters::use_grid_sampling(true).grid_spacing(spacing);
+    const double ab = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(m_mesh, m_reference_mesh, sampling);
+    const double ba = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(m_reference_mesh, m_mesh, sampling);
+    d.hausdorff_distance = std::max(ab, ba) / m_diagonal;
+    return d;
+  }
+
+private:
+  Positions vertex_normals(const Positions& P) const
+  {
+    Positions N = Positions::Zero(P.rows(), 3);
+    for(Index f = 0; f < m_t->num_faces; ++f) {
+      const Index a = m_t->triangles[3 * f], b = m_t->triangles[3 * f + 1], c = m_t->triangles[3 * f + 2];
+      const Eigen::Vector3d pa = P.row(a), pb = P.row(b), pc = P.row(c);
+      const Eigen::RowVector3d n = (pb - pa).cross(pc - pa).transpose();  // 2 x area x unit normal
+      N.row(a) += n;
+      N.row(b) += n;
+      N.row(c) += n;
+    }
+    for(Index i = 0; i < P.rows(); ++i) {
+      const double len = N.row(i).norm();
+      if(len > 0) N.row(i) /= len;
+    }
+    return N;
+  }
+
+  void build(Sm& sm, const Positions& P) const
+  {
+    sm.clear();
+    for(Index i = 0; i < P.rows(); ++i) sm.add_vertex(Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
+    for(Index f = 0; f < m_t->num_faces; ++f) {
+      const auto face = sm.add_face(Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f])),
+                                    Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 1])),
+                                    Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 2])));
+      if(face == Sm::null_face())
+        throw Mesh_error("face " + std::to_string(f) +
+                           ": the Hausdorff distance needs a manifold mesh (this face makes a vertex non-manifold)",
+                         Mesh_error::Element::face, f);
+    }
+  }
+
+  const Mesh_topology* m_t;
+  Positions m_reference, m_reference_normals;
+  double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
+  bool m_closed = false;
+  Sm m_reference_mesh, m_mesh;
+};
+
+} // namespace internal
+
+/// \ingroup PkgLapmeshDenoising
+/// @brief returns how far `tm` is from `reference`, which must have the same connectivity
+/// (same vertex order and faces): RMS vertex distance, symmetric approximate Hausdorff distance
+/// (both divided by the reference's bounding-box diagonal), mean normal-angle error in degrees
+/// (area-weighted vertex normals) and relative volume change (closed meshes; NaN otherwise).
+///
+/// @param np_reference, np named parameters of each mesh: `vertex_point_map`, `vertex_index_map`;
+///   `np` also reads `lapmesh::parameters::hausdorff_spacing` (default 1 mean edge length).
+/// @throws std::invalid_argument when the connectivities differ; Mesh_error for invalid meshes.
+template <typename TriangleMesh, typename NamedParameters1 = CGAL::parameters::Default_named_parameters,
+          typename NamedParameters2 = CGAL::parameters::Default_named_parameters>
+Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh& tm,
+                              const NamedParameters1& np_reference = CGAL::parameters::default_values(),
+                              const NamedParameters2& np = CGAL::parameters::default_values())
+{
+  const auto ref = internal::extract_mesh(reference, np_reference);
+  const auto cur = internal::extract_mesh(tm, np);
+  if(ref.topology.num_vertices != cur.topology.num_vertices || ref.topology.triangles != cur.topology.triangles)
+    throw std::invalid_argument("the mesh and the reference do not have the same connectivity");
+  const double spacing =
+    CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::hausdorff_spacing), 1.0);
+  internal::Deviation_meter meter(ref.topology, ref.positions, spacing);
+  return meter.measure(cur.positions);
+}
+
+/// The unit in which the study's time steps are given.
+enum class Time_step_unit {
+  absolute,                  ///< lambda itself
+  mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
+  stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the noisy mesh
+};
+
+/// What the denoising study runs. Every combination of level, scheme, Laplacian and time step
+/// is one run of `iterations` steps on the same noisy mesh (per level).
+struct Denoising_study_settings
+{
+  std::vector<double> noise_levels{0.02, 0.05, 0.1};
+  std::vector<Smoothing_scheme> schemes{Smoothing_scheme::explicit_euler, Smoothing_scheme::implicit_euler};
+  std::vector<Laplacian> laplacians{Laplacian::uniform, Laplacian::cotangent};
+  std::vector<double> time_steps{0.03, 0.1, 0.3, 1.0, 3.0};
+  Time_step_unit unit = Time_step_unit::mean_edge_length_squared;
+  int iterations = 20;
+  std::uint64_t seed = 1;  ///< the same seed for every level: the noise differs only in scale
+  Noise_direction noise_direction = Noise_direction::isotropic;
+  Noise_scale noise_scale = Noise_scale::mean_edge_length;
+  Vertex_area area = Vertex_area::barycentric;
+  bool restore_volume = false;  ///< closed meshes only
+  bool fixed_operator = false;
+  double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh
+  /// Called after each run (done, total runs).
+  std::function<void(std::size_t, std::size_t)> progress;
+};
+
+enum class Run_status {
+  ok,        ///< finite and within one bounding-box diagonal of the clean mesh
+  diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
+  failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
+};
+inline const char* to_string(Run_status s)
+{
+  return s == Run_status::ok ? "ok" : s == Run_status::diverged ? "diverged" : "failed";
+}
+inline const char* to_string(Smoothing_scheme s)
+{
+  return s == Smoothing_scheme::explicit_euler ? "explicit" : s == Smoothing_scheme::implicit_euler ? "implicit" : "conformal";
+}
+
+/// One measurement: the state after `iteration` steps (0: the noisy mesh).
+struct Denoising_record
+{
+  double noise_level = 0;
+  double sigma = 0;  ///< the noise's standard deviation (absolute)
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;
+  Laplacian laplacian = Laplacian::cotangent;
+  double time_step = 0;        ///< in the settings' unit
+  double lambda = 0;           ///< absolute
+  double stability_bound = 0;  ///< 2 / mu_max of the noisy mesh for this Laplacian (absolute)
+  int iteration = 0;
+  Mesh_deviation deviation;
+  Run_status status = Run_status::ok;
+  std::string message;  ///< the error, for failed runs
+};
+
+struct Denoising_study
+{
+  std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration
+
+  /// The record with the smallest RMS distance among the `ok` records after at least one
+  /// step for this level and scheme (all Laplacians and time steps), if any.
+  std::optional<Denoising_record> best(double level, Smoothing_scheme scheme) const
+  {
+    std::optional<Denoising_record> out;
+    for(const auto& r : records)
+      if(r.noise_level == level && r.scheme == scheme && r.iteration > 0 && r.status == Run_status::ok &&
+         std::isfinite(r.deviation.rms_distance) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
+        out = r;
+    return out;
+  }
+};
+
+namespace internal {
+
+struct Stop_run {};
+
+inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positions& clean,
+                                           const Denoising_study_settings& s)
+{
+  if(s.iterations <= 0) throw std::invalid_argument("the number of iterations must be positive (got " + std::to_string(s.iterations) + ")");
+  for(double l : s.noise_levels)
+    if(!(l >= 0) || !std::isfinite(l)) throw std::invalid_argument("noise levels must be finite numbers >= 0");
+  for(double tau : s.time_steps)
+    if(!(tau > 0) || !std::isfinite(tau)) throw std::invalid_argument("time steps must be positive finite numbers");
+  if(s.noise_levels.empty() || s.schemes.empty() || s.laplacians.empty() || s.time_steps.empty())
+    throw std::invalid_argument("the study needs at least one noise level, scheme, Laplacian and time step");
+  if(s.restore_volume && t.num_boundary_edges != 0)
+    throw std::invalid_argument("volume restoration needs a closed mesh");
+
+  Deviation_meter meter(t, clean, s.hausdorff_spacing);
+  Denoising_study study;
+  const std::size_t total_runs = s.noise_levels.size() * s.schemes.size() * s.laplacians.size() * s.time_steps.size();
+  study.records.reserve(total_runs * std::size_t(s.iterations + 1));
+  std::size_t runs_done = 0;
+  const std::vector<char> no_constraints(std::size_t(t.num_vertices), 0);
+  std::vector<char> free_mask(std::size_t(t.num_vertices));
+  for(Index i = 0; i < t.num_vertices; ++i) free_mask[i] = !t.on_boundary[i];
+
+  for(double level : s.noise_levels) {
+    Positions noisy = clean;
+    const double sigma = add_noise(t, noisy, level, s.noise_direction, s.noise_scale, s.seed);
+    const Mesh_deviation noisy_deviation = meter.measure(noisy);
+    const double h = mean_edge_length(t, noisy);
+    for(Smoothing_scheme scheme : s.schemes)
+      for(Laplacian lap : s.laplacians) {
+        // The explicit bound of the noisy mesh (what a user would compute), once per Laplacian.
+        double bound = std::numeric_limits<double>::quiet_NaN();
+        std::string bound_error;
+        try {
+          Laplacian_pencil pencil;
+          assemble_pencil(t, noisy, lap, s.area, false, pencil);
+          if(lap == Laplacian::cotangent) require_positive_mass(pencil.mass, s.area);
+          const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
+          bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+        } catch(const std::exception& e) {
+          bound_error = e.what();
+        }
+        for(double tau : s.time_steps) {
+          Denoising_record base;
+          base.noise_level = level;
+          base.sigma = sigma;
+          base.scheme = scheme;
+          base.laplacian = lap;
+          base.time_step = tau;
+          base.stability_bound = bound;
+          switch(s.unit) {
+            case Time_step_unit::absolute: base.lambda = tau; break;
+            case Time_step_unit::mean_edge_length_squared: base.lambda = lap == Laplacian::uniform ? tau : tau * h * h; break;
+            case Time_step_unit::stability_bound: base.lambda = tau * bound; break;
+          }
+          Denoising_record r0 = base;
+          r0.iteration = 0;
+          r0.deviation = noisy_deviation;
+          study.records.push_back(r0);
+
+          Positions P = noisy;
+          Smoothing_settings settings;
+          settings.scheme = scheme;
+          settings.laplacian = lap;
+          settings.area = s.area;
+          settings.lambda = base.lambda;
+          settings.iterations = s.iterations;
+          settings.fixed_operator = s.fixed_operator;
+          settings.restore_volume = s.restore_volume;
+          Run_status status = Run_status::ok;
+          std::string message;
+          int done = 0;
+          // P is smoothed in place: the callback sees the state after each iteration.
+          settings.progress = [&](int it, int) {
+            Denoising_record r = base;
+            r.iteration = it;
+            done = it;
+            // A diverging explicit run can grow by orders of magnitude in one step: check the
+            // cheap RMS first, and do not sample a huge mesh for the Hausdorff distance.
+            const double rms = meter.rms_distance(P);
+            if(!(rms <= 1.0)) {
+              const double nan = std::numeric_limits<double>::quiet_NaN();
+              r.deviation = Mesh_deviation{rms, nan, nan, nan};
+              r.status = status = Run_status::diverged;
+            } else {
+              r.deviation = meter.measure(P);
+            }
+            study.records.push_back(r);
+            if(status != Run_status::ok) throw Stop_run{};
+          };
+          try {
+            if(!bound_error.empty()) throw Mesh_error(bound_error);
+            if(!(base.lambda > 0) || !std::isfinite(base.lambda))
+              throw std::invalid_argument("the time step is not a positive finite number");
+            smooth_positions(t, P, no_constraints, settings);
+          } catch(const Stop_run&) {
+          } catch(const Numerical_error& e) {
+            // The explicit scheme's divergence check (non-finite positions) lands here too.
+            status = scheme == Smoothing_scheme::explicit_euler && !P.allFinite() ? Run_status::diverged : Run_status::failed;
+            message = e.what();
+          } catch(const std::exception& e) {
+            status = Run_status::failed;
+            message = e.what();
+          }
+          for(int it = done + 1; it <= s.iterations; ++it) {
+            Denoising_record r = base;
+            r.iteration = it;
+            const double nan = std::numeric_limits<double>::quiet_NaN();
+            r.deviation = Mesh_deviation{nan, nan, nan, nan};
+            r.status = status;
+            r.message = message;
+            study.records.push_back(r);
+          }
+          ++runs_done;
+          if(s.progress) s.progress(runs_done, total_runs);
+        }
+      }
+  }
+  return study;
+}
+
+} // namespace internal
+
+/// \ingroup PkgLapmeshDenoising
+/// @brief runs a denoising study on the clean mesh `tm`: for each noise level, adds seeded
+/// noise (`add_noise`, same seed for every level), then for each scheme, Laplacian and time
+/// step smooths for `settings.iterations` steps and measures the deviation from `tm` after
+/// every step (and once before the first, iteration 0).
+///
+/// Runs whose RMS distance exceeds one bounding-box diagonal are stopped and marked
+/// `diverged`; runs stopped by an error (a collapsed face, a failed factorisation) are marked
+/// `failed`; their remaining records hold NaN. Named parameters: `vertex_point_map`,
+/// `vertex_index_map`. `tm` is not modified.
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+Denoising_study run_denoising_study(const TriangleMesh& tm, const Denoising_study_settings& settings,
+                                    const NamedParameters& np = CGAL::parameters::default_values())
+{
+  const auto mesh = internal::extract_mesh(tm, np);
+  return internal::run_denoising_study(mesh.topology, mesh.positions, settings);
+}
+
+} // namespace lapmesh
+
+#endif
