@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -223,7 +224,7 @@ void run(const Study_options& o)
 
   // Render everything first, then write: no output at all when something fails.
   std::string plot;
-  if(!o.plot.empty()) plot = render_plot(o.input, study, s, o.lambda_unit);
+  if(!o.plot.empty()) plot = render_plot(std::filesystem::path(o.input).filename().string(), study, s, o.lambda_unit);
   or_fail(o.output, [&] { lapmesh::io::write_atomically(o.output, [&](std::ostream& out) { write_csv(out, study, o.lambda_unit); }); });
   if(!o.plot.empty())
     or_fail(o.plot, [&] { lapmesh::io::write_atomically(o.plot, [&](std::ostream& out) { out << plot; }); });
