@@ -9,6 +9,7 @@
 //               "width": 600, "height": 450,
 //               "download": [{"mesh": "bumpy-sphere", "to": "bumpy.off"}],      (optional)
 //               "figures": [{"name": "cow_mean_uniform", "query": "mesh=cow&op=curvature&..."}]}
+//   In a query, RANGE_OF(NAME) stands for the manual colour range of the earlier figure NAME.
 //   Writes out_dir/NAME.png per figure and, in "results", per figure: the colour range shown,
 //   the data range, and the answers of the operations the page ran (lambda, sigma, bound, ...).
 // Any failure (no URL from the server, an error shown in the page, a timeout) exits non-zero
@@ -27,7 +28,7 @@ function fail(message) {
 const jobs = JSON.parse(fs.readFileSync(process.argv[2] || fail('usage: node render.cjs JOBS.json'), 'utf8'));
 let chromium;
 try {
-  ({ chromium } = require(path.join(jobs.node_modules, 'playwright-core')));
+  ({ chromium } = require(path.resolve(jobs.node_modules, 'playwright-core')));
 } catch (e) {
   fail(`playwright-core not found in ${jobs.node_modules} (build the target lapmesh_cli first): ${e.message}`);
 }
@@ -84,7 +85,14 @@ async function main() {
     for (const fig of figures) {
       const t0 = Date.now();
       answers = [];
-      await page.goto(`${url}?${fig.query}`);
+      // RANGE_OF(other): the colour range an earlier figure showed, so that two figures compare
+      const query = fig.query.replace(/RANGE_OF\(([^)]+)\)/g, (_, other) => {
+        if (!results[other]) throw new Error(`figure ${fig.name}: RANGE_OF(${other}) before that figure`);
+        const [lo, hi] = results[other].colour_range;
+        return `range=manual&min=${lo}&max=${hi}`;
+      });
+      fig.query = query;
+      await page.goto(`${url}?${query}`);
       await page.waitForFunction(() => document.body.dataset.ready === '1', null, { timeout: 300000 });
       const shown = await page.evaluate(() => {
         const e = document.getElementById('error');
