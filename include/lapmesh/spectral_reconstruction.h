@@ -29,10 +29,13 @@
 
 namespace lapmesh {
 
-/// Relative tolerance of Spectra's Lanczos iteration; default 1e-10.
+/// Relative residual tolerance of the Lanczos iteration; default 1e-10.
 LAPMESH_NAMED_PARAMETER(spectral_tolerance)
-/// Sparse_cholesky: the factorisation of -S - sigma M; default Sparse_cholesky::simplicial.
+/// Sparse_cholesky: the factorisation of -S - sigma M; default CHOLMOD (supernodal) when
+/// LAPMESH_HAS_CHOLMOD is defined, else Sparse_cholesky::simplicial.
 LAPMESH_NAMED_PARAMETER(sparse_cholesky)
+/// Krylov_method: lapmesh's block Lanczos (default) or Spectra's Lanczos.
+LAPMESH_NAMED_PARAMETER(krylov_method)
 /// sigma = -factor / sum(M); default 1e-2 (see internal/spectral_solver.h).
 LAPMESH_NAMED_PARAMETER(spectral_shift_factor)
 /// Extra eigenpairs computed for the completeness check; default max(6, k/10).
@@ -53,6 +56,7 @@ Spectral_options choose_spectral_options(const NamedParameters& np)
   o.tolerance = choose_parameter(get_parameter(np, internal_np::spectral_tolerance), o.tolerance);
   o.max_restarts = choose_parameter(get_parameter(np, CGAL::internal_np::number_of_iterations), o.max_restarts);
   o.cholesky = choose_parameter(get_parameter(np, internal_np::sparse_cholesky), o.cholesky);
+  o.method = choose_parameter(get_parameter(np, internal_np::krylov_method), o.method);
   o.shift_factor = choose_parameter(get_parameter(np, internal_np::spectral_shift_factor), o.shift_factor);
   o.extra = choose_parameter(get_parameter(np, internal_np::spectral_extra_pairs), o.extra);
   o.check_completeness = choose_parameter(get_parameter(np, internal_np::check_completeness), o.check_completeness);
@@ -84,7 +88,8 @@ public:
   ///   - `CGAL::parameters::vertex_point_map`, `vertex_index_map`
   ///   - `lapmesh::parameters::spectral_tolerance` (double, 1e-10)
   ///   - `CGAL::parameters::number_of_iterations` (Lanczos restarts, 1000)
-  ///   - `lapmesh::parameters::sparse_cholesky` (Sparse_cholesky, simplicial)
+  ///   - `lapmesh::parameters::sparse_cholesky` (Sparse_cholesky, cholmod when compiled in, else simplicial)
+  ///   - `lapmesh::parameters::krylov_method` (Krylov_method, block_lanczos; or spectra)
   ///   - `lapmesh::parameters::spectral_shift_factor` (double, 1e-2), `spectral_extra_pairs` (int)
   ///   - `lapmesh::parameters::check_completeness` (bool, true), `spectral_progress` (callback)
   /// @throws Mesh_error if a vertex area is <= 0; Numerical_error if the solver fails;

@@ -49,12 +49,13 @@ const lapmesh::Laplacian_pencil& pencil(int id)
   return cache.emplace(id, std::move(p)).first->second;
 }
 
-void BM_lapmesh(benchmark::State& state, lapmesh::Sparse_cholesky chol)
+void BM_lapmesh(benchmark::State& state, lapmesh::Sparse_cholesky chol, lapmesh::Krylov_method method)
 {
   const auto& p = pencil(int(state.range(0)));
   const int k = int(state.range(1));
   lapmesh::Spectral_options opt;
   opt.cholesky = chol;
+  opt.method = method;
   long long ops = 0;
   double lambda_last = 0;
   for(auto _ : state) {
@@ -118,10 +119,18 @@ void sizes(benchmark::internal::Benchmark* b)
 
 } // namespace
 
-BENCHMARK_CAPTURE(BM_lapmesh, simplicial, lapmesh::Sparse_cholesky::simplicial)->Apply(sizes);
+// Default: block Lanczos on CHOLMOD; then each of the two choices changed alone.
 #ifdef LAPMESH_HAS_CHOLMOD
-BENCHMARK_CAPTURE(BM_lapmesh, cholmod, lapmesh::Sparse_cholesky::cholmod)->Apply(sizes);
+BENCHMARK_CAPTURE(BM_lapmesh, block_cholmod, lapmesh::Sparse_cholesky::cholmod, lapmesh::Krylov_method::block_lanczos)
+  ->Apply(sizes);
+BENCHMARK_CAPTURE(BM_lapmesh, spectra_cholmod, lapmesh::Sparse_cholesky::cholmod, lapmesh::Krylov_method::spectra)
+  ->Apply(sizes);
 #endif
+BENCHMARK_CAPTURE(BM_lapmesh, block_simplicial, lapmesh::Sparse_cholesky::simplicial,
+                  lapmesh::Krylov_method::block_lanczos)
+  ->Apply(sizes);
+BENCHMARK_CAPTURE(BM_lapmesh, spectra_simplicial, lapmesh::Sparse_cholesky::simplicial, lapmesh::Krylov_method::spectra)
+  ->Apply(sizes);
 BENCHMARK(BM_lapmesh_nocheck)->Apply(sizes);
 BENCHMARK(BM_plain_spectra)->Apply(sizes);
 
@@ -166,6 +175,24 @@ void BM_ncv(benchmark::State& state)
   }
   state.counters["solves"] = double(ops);
 }
+// Block Lanczos: block size and basis size (ncv_factor / 10).
+void BM_block(benchmark::State& state)
+{
+  const auto& p = pencil(int(state.range(0)));
+  lapmesh::Spectral_options opt;
+  opt.block_size = int(state.range(2));
+  opt.ncv_factor = double(state.range(3)) / 10;
+  opt.band_size = 0;
+  long long ops = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
+    ops = b.operations();
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["solves"] = double(ops);
+}
+BENCHMARK(BM_block)->ArgsProduct({{2}, {30}, {4, 8, 16}, {20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_block)->ArgsProduct({{3}, {100}, {8, 16}, {15, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ncv)->ArgsProduct({{1, 3}, {30, 100}, {12, 15, 20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
 void BM_banded(benchmark::State& state)
 {

@@ -1,0 +1,265 @@
+// lapmesh — thick-restart block Lanczos for the largest eigenpairs of a symmetric operator
+// that is applied to blocks of vectors (Y = A X, X of size n x b).
+//
+// Why a block method. In shift-invert mode every Krylov step is a pair of sparse triangular
+// solves, which are memory bound: a supernodal factor read once serves b right-hand sides in a
+// fraction of the time of b single solves (CHOLMOD with OpenBLAS, 280k vertices: 14.7 ms per
+// vector for b = 8 against 41 ms for b = 1). The re-orthogonalisation against the basis also
+// becomes matrix-matrix products, where single-vector Lanczos (Spectra) spends about half of
+// its time in repeated matrix-vector products over the whole basis. The price is more
+// operator applications than single-vector Lanczos (about 1.8x for 30 pairs): the block
+// method wins as soon as a block solve costs less than half of b single ones.
+//
+// Method. Block Lanczos with full re-orthogonalisation: the new block is orthogonalised
+// against the last two blocks (the three-term recurrence), then once against the whole basis
+// (which removes the round-off drift of the recurrence), and made orthonormal by CholeskyQR2
+// (Householder QR plus random refill when the block is rank deficient, i.e. an invariant
+// subspace was found). The projected matrix T = V^T A V is kept in full; after every block
+// step, Rayleigh-Ritz on T gives Ritz pairs whose residual norms come for free from the
+// coupling to the unprocessed block. When the basis is full, it restarts thickly: the best Ritz
+// vectors plus the unprocessed block form the new basis (no information from converged
+// directions is lost, and T stays exact).
+#ifndef LAPMESH_INTERNAL_BLOCK_LANCZOS_H
+#define LAPMESH_INTERNAL_BLOCK_LANCZOS_H
+
+#include <lapmesh/errors.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// C = V^T W for a tall V and a thin W, reading V once in row panels that stay in cache
+/// (Eigen's product would first copy all of V into its packed format: twice the memory traffic
+/// of a product that is memory bound anyway).
+inline void panel_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& W,
+                             Eigen::MatrixXd& C)
+{
+  C.setZero(V.cols(), W.cols());
+  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, V.cols()));
+  for(Eigen::Index r = 0; r < V.rows(); r += panel) {
+    const Eigen::Index h = std::min(panel, V.rows() - r);
+    C.noalias() += V.middleRows(r, h).transpose() * W.middleRows(r, h);
+  }
+}
+
+/// W -= V C, by the same row panels.
+inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::MatrixXd& C,
+                                   Eigen::Ref<Eigen::MatrixXd> W)
+{
+  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, V.cols()));
+  for(Eigen::Index r = 0; r < V.rows(); r += panel) {
+    const Eigen::Index h = std::min(panel, V.rows() - r);
+    W.middleRows(r, h).noalias() -= V.middleRows(r, h) * C;
+  }
+}
+
+struct Block_lanczos_options
+{
+  Eigen::Index block_size = 8;   ///< vectors per block (operator applications per step)
+  Eigen::Index max_basis = 0;    ///< basis size before a restart; 0: max(2 nev, nev + 6 b)
+  double tolerance = 1e-10;      ///< converged when ||A y - theta y|| <= tolerance * |theta|
+  int max_restarts = 1000;
+  std::uint64_t seed = 0x5eed;   ///< of the random starting block (reproducible runs)
+  bool by_magnitude = false;     ///< wanted: largest |theta| (interior shift-invert) instead of largest theta
+};
+
+struct Block_lanczos_result
+{
+  Eigen::VectorXd values;    ///< the nev wanted eigenvalues, largest (or largest |theta|) first
+  Eigen::MatrixXd vectors;   ///< orthonormal eigenvectors, one per column
+  long long operations = 0;  ///< operator applications (vectors, not blocks)
+  int restarts = 0;
+};
+
+/// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X.
+/// `on_step(operations)` is called after every block step (progress reports).
+template <typename Apply>
+Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, Apply&& apply,
+                                           const Block_lanczos_options& opt,
+                                           const std::function<void(long long)>& on_step = {})
+{
+  using Eigen::Index;
+  using Eigen::MatrixXd;
+  const Index b = std::max<Index>(1, std::min(opt.block_size, n / 4));
+  Index m_max = opt.max_basis > 0 ? opt.max_basis : std::max(2 * nev, nev + 6 * b);
+  m_max = std::min<Index>(((m_max + b - 1) / b) * b, ((n - b) / b) * b);  // leave room for one more block
+  if(nev < 1 || nev + b > m_max)
+    throw Numerical_error("block Lanczos: " + std::to_string(nev) + " eigenpairs do not fit a basis of " +
+                          std::to_string(m_max) + " vectors (n = " + std::to_string(n) + ")");
+
+  MatrixXd V(n, m_max + b);                             // basis; columns [0, filled) are valid
+  MatrixXd T = MatrixXd::Zero(m_max + b, m_max + b);  // V^T A V on the processed columns
+  std::mt19937_64 rng(opt.seed);
+  auto random_unit = [&](Eigen::Ref<Eigen::VectorXd> x) {
+    // Uniform in [-1, 1) from the 53 high bits: the same start on every platform.
+    for(Index i = 0; i < n; ++i) x[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
+  };
+
+  // Orthonormalises W (n x b, already orthogonal to V[:, 0:filled]) into Q with W = Q R.
+  MatrixXd G, R2;
+  auto orthonormalise = [&](MatrixXd& W, MatrixXd& R, Index filled) {
+    const double scale = std::max(W.colwise().norm().maxCoeff(), 1e-300);
+    G.noalias() = W.transpose() * W;
+    Eigen::LLT<MatrixXd> llt1(G);
+    if(llt1.info() == Eigen::Success) {
+      R = llt1.matrixU();
+      const double dmin = R.diagonal().cwiseAbs().minCoeff();
+      if(dmin > 1e-7 * scale) {  // condition number < 1e7: CholeskyQR2 is accurate
+        llt1.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
+        G.noalias() = W.transpose() * W;
+        Eigen::LLT<MatrixXd> llt2(G);
+        if(llt2.info() == Eigen::Success) {
+          llt2.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
+          R2 = llt2.matrixU();
+          R = R2 * R;
+          return;
+        }
+      }
+    }
+    // Rank deficient (an invariant subspace was found) or ill-conditioned: Householder QR, and
+    // random directions orthogonal to everything for the columns W does not span.
+    Eigen::HouseholderQR<MatrixXd> qr(W);
+    R = qr.matrixQR().topRows(W.cols()).template triangularView<Eigen::Upper>();
+    MatrixXd Q = qr.householderQ() * MatrixXd::Identity(n, W.cols());
+    for(Index j = 0; j < W.cols(); ++j) {
+      if(std::abs(R(j, j)) > 1e-10 * scale) continue;
+      R.row(j).setZero();
+      Eigen::VectorXd x(n);
+      random_unit(x);
+      for(int pass = 0; pass < 2; ++pass) {
+        x -= V.leftCols(filled) * (V.leftCols(filled).transpose() * x);
+        for(Index i = 0; i < W.cols(); ++i)
+          if(i != j) x -= Q.col(i) * Q.col(i).dot(x);
+      }
+      Q.col(j) = x.normalized();
+    }
+    // Columns of Q that come from a small R_jj are W's round-off divided by R_jj: not orthogonal
+    // to V. Project them out and orthonormalise again; the dropped components are O(eps ||W||).
+    for(int pass = 0; pass < 2; ++pass) {
+      Q -= V.leftCols(filled) * (V.leftCols(filled).transpose() * Q);
+      Eigen::HouseholderQR<MatrixXd> again(Q);
+      const MatrixXd R_again = again.matrixQR().topRows(W.cols()).template triangularView<Eigen::Upper>();
+      MatrixXd Q_again = again.householderQ() * MatrixXd::Identity(n, W.cols());
+      // Keep the signs: Q_again R_again = Q with diag(R_again) ~ +-1.
+      for(Index j = 0; j < W.cols(); ++j)
+        if(R_again(j, j) < 0) Q_again.col(j) = -Q_again.col(j);
+      Q = std::move(Q_again);
+      MatrixXd S = R_again;
+      for(Index j = 0; j < W.cols(); ++j)
+        if(R_again(j, j) < 0) S.row(j) = -S.row(j);
+      R = S * R;
+    }
+    W = std::move(Q);
+  };
+
+  Block_lanczos_result out;
+  {
+    MatrixXd W(n, b), R;
+    for(Index j = 0; j < b; ++j) random_unit(W.col(j));
+    orthonormalise(W, R, 0);
+    V.leftCols(b) = W;
+  }
+  Index processed = 0, filled = b, restart_start = 0;
+  MatrixXd X, W, C, R;
+  for(int restart = 0;; ++restart) {
+    while(filled <= m_max) {
+      const Index cur = processed;
+      X = V.middleCols(cur, b);
+      W.resize(n, b);
+      apply(static_cast<const MatrixXd&>(X), W);
+      out.operations += b;
+      // Three-term recurrence against the last two blocks (the large components), then one pass
+      // against the whole basis; T gets the sum of both coefficient sets. The first block after
+      // a restart couples to every kept Ritz vector: it gets two full passes instead.
+      const Index lo = cur == restart_start ? 0 : cur - b;
+      const Index local = filled - lo;
+      panel_product_tn(V.middleCols(lo, local), W, C);
+      panel_subtract_product(V.middleCols(lo, local), C, W);
+      MatrixXd Cg;
+      panel_product_tn(V.leftCols(filled), W, Cg);
+      panel_subtract_product(V.leftCols(filled), Cg, W);
+      Cg.middleRows(lo, local) += C;
+      T.block(0, cur, filled, b) = Cg;
+      T.block(cur, 0, b, filled) = Cg.transpose();
+      T.block(cur, cur, b, b) = 0.5 * (Cg.middleRows(cur, b) + Cg.middleRows(cur, b).transpose());
+      orthonormalise(W, R, filled);
+      V.middleCols(filled, b) = W;
+      T.block(filled, cur, b, b) = R;
+      T.block(cur, filled, b, b) = R.transpose();
+      processed += b;
+      filled += b;
+      if(on_step) on_step(out.operations);
+      if(processed < nev) continue;
+
+      // Rayleigh-Ritz on the processed columns; residual of the Ritz pair (theta, V z):
+      // A V z - theta V z = V_next R_last z_last, so its norm is ||R_last z_last||.
+      Eigen::SelfAdjointEigenSolver<MatrixXd> es(T.topLeftCorner(processed, processed));
+      if(es.info() != Eigen::Success) throw Numerical_error("block Lanczos: the projected eigenproblem failed");
+      Eigen::VectorXd theta = es.eigenvalues().reverse();
+      MatrixXd Z = es.eigenvectors().rowwise().reverse();
+      if(opt.by_magnitude) {
+        std::vector<Index> order(std::size_t(theta.size()));
+        for(Index i = 0; i < theta.size(); ++i) order[std::size_t(i)] = i;
+        std::stable_sort(order.begin(), order.end(),
+                         [&](Index a, Index c) { return std::abs(theta[a]) > std::abs(theta[c]); });
+        const Eigen::VectorXd t0 = theta;
+        const MatrixXd z0 = Z;
+        for(Index i = 0; i < theta.size(); ++i) {
+          theta[i] = t0[order[std::size_t(i)]];
+          Z.col(i) = z0.col(order[std::size_t(i)]);
+        }
+      }
+      const MatrixXd R_last = T.block(processed, processed - b, b, b);
+      Index converged = 0;
+      while(converged < nev &&
+            (R_last * Z.block(processed - b, converged, b, 1)).norm() <=
+              opt.tolerance * std::max(std::abs(theta[converged]), 1e-300 + 1e-14 * std::abs(theta[0])))
+        ++converged;
+      if(converged >= nev) {
+        out.values = theta.head(nev);
+        out.vectors.noalias() = V.leftCols(processed) * Z.leftCols(nev);
+        out.restarts = restart;
+        return out;
+      }
+      if(filled + b > m_max + b) {  // basis full: thick restart
+        if(restart >= opt.max_restarts)
+          throw Numerical_error("block Lanczos: " + std::to_string(converged) + " of " + std::to_string(nev) +
+                                " eigenpairs converged after " + std::to_string(restart) +
+                                " restarts (tolerance " + std::to_string(opt.tolerance) + ")");
+        // Keep the wanted Ritz vectors and a third of the rest: the rest speeds up convergence of
+        // the last wanted ones; the new room lets the Krylov space grow again.
+        const Index keep = std::min(processed - b, std::max(nev, nev + (processed - nev) / 3));
+        MatrixXd kept = V.leftCols(processed) * Z.leftCols(keep);
+        const MatrixXd next = V.middleCols(processed, b);
+        V.leftCols(keep) = kept;
+        V.middleCols(keep, b) = next;
+        T.setZero();
+        T.topLeftCorner(keep, keep).diagonal() = theta.head(keep);
+        const MatrixXd coupling = R_last * Z.block(processed - b, 0, b, keep);
+        T.block(keep, 0, b, keep) = coupling;
+        T.block(0, keep, keep, b) = coupling.transpose();
+        processed = keep;
+        filled = keep + b;
+        restart_start = keep;
+        break;
+      }
+    }
+  }
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif
