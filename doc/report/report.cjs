@@ -194,7 +194,7 @@ p('## Implicit smoothing (seed Figure 10)', '',
   ...table(['mesh', 'λ = 1', 'λ = 1e-3', 'λ = 1e-5', 'λ in mean edge²'], names.map((m) => [m,
     ...['1', '1e-3', '1e-5'].map((l) => img(`${m}_implicit_${l}`, `${m} lambda ${l}`)),
     ['1', '1e-3', '1e-5'].map((l) => g(Number(l) / edge2(m), 2)).join(' / ')])), '',
-  'Every step is stable whatever λ. What λ does depends on the mesh\'s size: λ = 1 is thousands of mean edge² on these ' +
+  'Every step is stable whatever λ. What λ does depends on the mesh\'s size: λ = 1 is hundreds to thousands of mean edge² on these ' +
   'meshes and shrinks them to a near-point (the flow has run far past the shape), λ = 1e-5 is a fraction of one ' +
   'mean edge² and only removes the finest wiggles. One to a few mean edge² per step (`--lambda auto`) is a useful ' +
   'default on any mesh.', '');
