@@ -145,8 +145,10 @@ const recon = Object.fromEntries(names.map((m) => [m, csv(path.join(work, `recon
 const ks = [...new Set(names.flatMap((m) => recon[m].map((r) => Number(r.k))))].sort((a, b) => a - b);
 p(...table(['mesh', ...ks.map((k) => `k = ${k}`)], names.map((m) => [m, ...ks.map((k) => {
   const r = recon[m].find((x) => Number(x.k) === k);
-  return r ? g(r.rms_over_diagonal) : '-';
-})])), '');
+  return r ? `${g(r.rms_over_diagonal)}${r.splits_eigenspace === '1' ? ' *' : ''}` : '-';
+})])), '', '\\* k cuts through a repeated eigenvalue (λ_{k−1} = λ_k to 1e-8): the result then depends on the basis ' +
+  'the solver picked inside that eigenspace, and `lapmesh reconstruct` warns. The bumpy sphere (an icosphere with a ' +
+  'symmetric bump pattern) has exactly repeated eigenvalues, so its k = 5 and 10 images can differ from run to run.', '');
 const reconAt = (m, k) => Number((recon[m].find((x) => Number(x.k) === k) || {}).rms_over_diagonal);
 p(`How many eigenvectors are needed: with 5 the shape is a blob (${names.map((m) => `${m} ${g(100 * reconAt(m, 5), 2)}%`).join(', ')} ` +
   `of the diagonal); 30 give the overall shape (${names.map((m) => `${g(100 * reconAt(m, 30), 2)}%`).join(', ')}); ` +
