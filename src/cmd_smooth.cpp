@@ -59,15 +59,11 @@ void run(const Smooth_options& o)
   lapmesh::Smoothing_report report;
   double lambda = lambda_value;
   try {
-    std::string unit = o.lambda_unit;
-    if(lambda_auto) {
-      // explicit: 0.9 of the stability bound; implicit/conformal: one mean edge length squared.
-      lambda_value = scheme == lapmesh::Smoothing_scheme::explicit_euler ? 0.9 : 1.0;
-      unit = scheme == lapmesh::Smoothing_scheme::explicit_euler ? "bound" : "edge2";
-    }
-    if(unit == "bound") lambda = lambda_value * lapmesh::explicit_stability_bound(mesh, base);
-    else if(unit == "edge2") lambda = lapmesh::scale_free_time_step(mesh, lambda_value, base);
-    else lambda = lambda_value;
+    const auto unit = o.lambda_unit == "bound"   ? lapmesh::Time_step_unit::stability_bound
+                      : o.lambda_unit == "edge2" ? lapmesh::Time_step_unit::mean_edge_length_squared
+                                                 : lapmesh::Time_step_unit::absolute;
+    lambda = lambda_auto ? lapmesh::automatic_time_step(mesh, scheme, base)
+                         : lapmesh::time_step(mesh, lambda_value, unit, base);
 
     auto np = lapmesh::parameters::reuse_factorization(o.reuse_factorization, lapmesh::parameters::progress_callback(
       progress, lapmesh::parameters::restore_volume(

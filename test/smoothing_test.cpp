@@ -233,6 +233,31 @@ TEST(Smoothing, ReusedFactorizationMatchesRefactorization)
   EXPECT_LE((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-10);
 }
 
+TEST(Smoothing, TimeStepUnitsAndAutomaticStep)
+{
+  // The rule shared by `lapmesh smooth --lambda auto`, the viewer and the study.
+  const Mesh m = to_mesh(lapmesh::icosphere(3, 2.0));
+  const double bound = lapmesh::explicit_stability_bound(m);
+  const double h = lapmesh::mean_edge_length(m);
+  EXPECT_DOUBLE_EQ(lapmesh::time_step(m, 0.5, lapmesh::Time_step_unit::stability_bound), 0.5 * bound);
+  EXPECT_DOUBLE_EQ(lapmesh::time_step(m, 3.0, lapmesh::Time_step_unit::mean_edge_length_squared), 3.0 * h * h);
+  EXPECT_DOUBLE_EQ(lapmesh::time_step(m, 3.0, lapmesh::Time_step_unit::absolute), 3.0);
+  EXPECT_DOUBLE_EQ(lapmesh::automatic_time_step(m, lapmesh::Smoothing_scheme::explicit_euler), 0.9 * bound);
+  EXPECT_DOUBLE_EQ(lapmesh::automatic_time_step(m, lapmesh::Smoothing_scheme::implicit_euler), h * h);
+  // The uniform Laplacian's time step is dimensionless.
+  EXPECT_DOUBLE_EQ(lapmesh::automatic_time_step(m, lapmesh::Smoothing_scheme::conformal,
+                                                LP::laplacian(lapmesh::Laplacian::uniform)),
+                   1.0);
+  // The automatic explicit step is stable and follows mean curvature flow: after 5 steps of
+  // lambda, r^2 = r0^2 - 4 t with t = 5 lambda (to a few percent at this resolution).
+  Mesh s = m;
+  const double lambda = lapmesh::automatic_time_step(s, lapmesh::Smoothing_scheme::explicit_euler);
+  lapmesh::smooth_laplacian_explicit(s, lambda, CGAL::parameters::number_of_iterations(5));
+  const double expected = std::sqrt(4.0 - 4 * 5 * lambda);
+  for(auto v : vertices(s))
+    EXPECT_NEAR(std::sqrt((s.point(v) - CGAL::ORIGIN).squared_length()), expected, 0.03 * expected);
+}
+
 TEST(Smoothing, ExplicitSkipsLanczosWhenGershgorinProvesStability)
 {
   Mesh m = to_mesh(lapmesh::icosphere(3));

@@ -175,8 +175,11 @@ private:
 /// (both divided by the reference's bounding-box diagonal), mean normal-angle error in degrees
 /// (area-weighted vertex normals) and relative volume change (closed meshes; NaN otherwise).
 ///
-/// @param np_reference, np named parameters of each mesh: `vertex_point_map`, `vertex_index_map`;
-///   `np` also reads `lapmesh::parameters::hausdorff_spacing` (default 1 mean edge length).
+/// @param reference the clean mesh
+/// @param tm the mesh to measure, with the connectivity of `reference`
+/// @param np_reference named parameters of `reference`: `vertex_point_map`, `vertex_index_map`
+/// @param np named parameters of `tm`: `vertex_point_map`, `vertex_index_map`, and
+///   `lapmesh::parameters::hausdorff_spacing` (default 1 mean edge length)
 /// @throws std::invalid_argument when the connectivities differ; Mesh_error for invalid meshes.
 template <typename TriangleMesh, typename NamedParameters1 = CGAL::parameters::Default_named_parameters,
           typename NamedParameters2 = CGAL::parameters::Default_named_parameters>
@@ -194,43 +197,40 @@ Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh&
   return meter.measure(cur.positions);
 }
 
-/// The unit in which the study's time steps are given.
-enum class Time_step_unit {
-  absolute,                  ///< lambda itself
-  mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
-  stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the noisy mesh
-};
-
 /// What the denoising study runs. Every combination of level, scheme, Laplacian and time step
 /// is one run of `iterations` steps on the same noisy mesh (per level).
 struct Denoising_study_settings
 {
-  std::vector<double> noise_levels{0.02, 0.05, 0.1};
-  std::vector<Smoothing_scheme> schemes{Smoothing_scheme::explicit_euler, Smoothing_scheme::implicit_euler};
-  std::vector<Laplacian> laplacians{Laplacian::uniform, Laplacian::cotangent};
-  std::vector<double> time_steps{0.03, 0.1, 0.3, 1.0, 3.0};
-  Time_step_unit unit = Time_step_unit::mean_edge_length_squared;
-  int iterations = 20;
+  std::vector<double> noise_levels{0.02, 0.05, 0.1};  ///< noise levels (sigma = level x noise_scale)
+  std::vector<Smoothing_scheme> schemes{Smoothing_scheme::explicit_euler,
+                                        Smoothing_scheme::implicit_euler};  ///< schemes compared
+  std::vector<Laplacian> laplacians{Laplacian::uniform, Laplacian::cotangent};  ///< Laplacians compared
+  std::vector<double> time_steps{0.03, 0.1, 0.3, 1.0, 3.0};  ///< time steps, in `unit`
+  Time_step_unit unit = Time_step_unit::mean_edge_length_squared;  ///< unit of `time_steps`
+  int iterations = 20;  ///< smoothing steps per run (one record after each)
   std::uint64_t seed = 1;  ///< the same seed for every level: the noise differs only in scale
-  Noise_direction noise_direction = Noise_direction::isotropic;
-  Noise_scale noise_scale = Noise_scale::mean_edge_length;
-  Vertex_area area = Vertex_area::barycentric;
+  Noise_direction noise_direction = Noise_direction::isotropic;  ///< isotropic or along the normals
+  Noise_scale noise_scale = Noise_scale::mean_edge_length;        ///< what the level multiplies
+  Vertex_area area = Vertex_area::barycentric;                    ///< vertex area of the operators
   bool restore_volume = false;  ///< closed meshes only
-  bool fixed_operator = false;
+  bool fixed_operator = false;  ///< keep the noisy mesh's operator for all iterations
   double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh
   /// Called after each run (done, total runs).
   std::function<void(std::size_t, std::size_t)> progress;
 };
 
+/// How a run of the denoising study ended.
 enum class Run_status {
   ok,        ///< finite and within one bounding-box diagonal of the clean mesh
   diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
   failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
 };
+/// The name of a run status: "ok", "diverged" or "failed".
 inline const char* to_string(Run_status s)
 {
   return s == Run_status::ok ? "ok" : s == Run_status::diverged ? "diverged" : "failed";
 }
+/// The name of a scheme as the command line spells it: "explicit", "implicit" or "conformal".
 inline const char* to_string(Smoothing_scheme s)
 {
   return s == Smoothing_scheme::explicit_euler ? "explicit" : s == Smoothing_scheme::implicit_euler ? "implicit" : "conformal";
@@ -239,19 +239,20 @@ inline const char* to_string(Smoothing_scheme s)
 /// One measurement: the state after `iteration` steps (0: the noisy mesh).
 struct Denoising_record
 {
-  double noise_level = 0;
+  double noise_level = 0;  ///< the noise level of this run
   double sigma = 0;  ///< the noise's standard deviation (absolute)
-  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;
-  Laplacian laplacian = Laplacian::cotangent;
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< the scheme of this run
+  Laplacian laplacian = Laplacian::cotangent;                  ///< the Laplacian of this run
   double time_step = 0;        ///< in the settings' unit
   double lambda = 0;           ///< absolute
   double stability_bound = 0;  ///< 2 / mu_max of the noisy mesh for this Laplacian (absolute)
-  int iteration = 0;
-  Mesh_deviation deviation;
-  Run_status status = Run_status::ok;
+  int iteration = 0;                   ///< steps done (0: the noisy mesh)
+  Mesh_deviation deviation;            ///< the metrics against the clean mesh
+  Run_status status = Run_status::ok;  ///< how the run stands after this step
   std::string message;  ///< the error, for failed runs
 };
 
+/// The records of a denoising study, and the best run per noise level and scheme.
 struct Denoising_study
 {
   std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration

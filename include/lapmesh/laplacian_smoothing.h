@@ -192,6 +192,33 @@ double scale_free_time_step(const TriangleMesh& tm, double tau,
   return tau * h * h;
 }
 
+/// @brief returns the time step lambda given as `value` in `unit` for the operator of `tm`
+/// (named parameters as explicit_stability_bound()).
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+double time_step(const TriangleMesh& tm, double value, Time_step_unit unit,
+                 const NamedParameters& np = CGAL::parameters::default_values())
+{
+  switch(unit) {
+    case Time_step_unit::stability_bound: return value * explicit_stability_bound(tm, np);
+    case Time_step_unit::mean_edge_length_squared: return scale_free_time_step(tm, value, np);
+    case Time_step_unit::absolute: break;
+  }
+  return value;
+}
+
+/// @brief returns the automatic time step of `lapmesh smooth --lambda auto` and the viewer:
+/// 0.9 of the stability bound for the explicit scheme (the largest step that stays stable, with
+/// a margin for the operator changing between iterations), one mean edge length squared
+/// (scale_free_time_step() with tau = 1) for the implicit and conformal schemes, which are
+/// stable at any step and remove noise of about one edge length per step.
+template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+double automatic_time_step(const TriangleMesh& tm, Smoothing_scheme scheme,
+                           const NamedParameters& np = CGAL::parameters::default_values())
+{
+  return scheme == Smoothing_scheme::explicit_euler ? time_step(tm, 0.9, Time_step_unit::stability_bound, np)
+                                                    : time_step(tm, 1.0, Time_step_unit::mean_edge_length_squared, np);
+}
+
 } // namespace lapmesh
 
 #endif

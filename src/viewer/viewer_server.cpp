@@ -547,15 +547,12 @@ struct Server::Impl
                      : scheme == "implicit" ? lapmesh::Smoothing_scheme::implicit_euler
                                             : lapmesh::Smoothing_scheme::conformal;
     const auto base = LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap)));
-    // The rules of `lapmesh smooth --lambda auto` (cmd_smooth.cpp).
-    if(lambda_auto) {
-      lambda_value = sch == lapmesh::Smoothing_scheme::explicit_euler ? 0.9 : 1.0;
-      unit = sch == lapmesh::Smoothing_scheme::explicit_euler ? "bound" : "edge2";
-    }
     s.set_stage("time step");
-    double lambda = lambda_value;
-    if(unit == "bound") lambda = lambda_value * lapmesh::explicit_stability_bound(s.current, base);
-    else if(unit == "edge2") lambda = lapmesh::scale_free_time_step(s.current, lambda_value, base);
+    const auto time_unit = unit == "bound"   ? lapmesh::Time_step_unit::stability_bound
+                           : unit == "edge2" ? lapmesh::Time_step_unit::mean_edge_length_squared
+                                             : lapmesh::Time_step_unit::absolute;
+    const double lambda = lambda_auto ? lapmesh::automatic_time_step(s.current, sch, base)
+                                      : lapmesh::time_step(s.current, lambda_value, time_unit, base);
     s.total = iterations;
     s.set_stage("smoothing");
     Mesh work = s.current;  // a cancelled or failed run leaves the mesh as it was

@@ -39,6 +39,13 @@ enum class Smoothing_scheme {
   conformal        ///< conformalized mean curvature flow (Kazhdan et al. 2012): S of the input, M updated
 };
 
+/// The unit in which a time step is given (smoothing, the denoising study, the viewer).
+enum class Time_step_unit {
+  absolute,                  ///< lambda itself
+  mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
+  stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the mesh
+};
+
 /// What a smoothing run did. Times are wall-clock seconds spent in each phase.
 struct Smoothing_report
 {
