@@ -1,6 +1,7 @@
 // Mesh input/output: formats, exact round trips, vertex order, repairs and every bad input.
 #include "test_helpers.h"
 
+#include <lapmesh/curvature.h>
 #include <lapmesh/io.h>
 
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -227,4 +228,55 @@ TEST(Io, ReadsCgalDataSetMeshes)
   }
   Mesh cloud;  // b9.ply is a point cloud: no faces
   EXPECT_THROW(lapmesh::io::read_triangle_mesh(cgal_mesh("b9.ply"), cloud), lapmesh::Mesh_error);
+}
+
+TEST(Data, HandWrittenMeshes)
+{
+  // The meshes of data/ (see data/README.md): each checks what its comment claims.
+  const std::string data = LAPMESH_DATA_DIR;
+  auto read = [&](const std::string& name, Mesh& m) { return lapmesh::io::read_triangle_mesh(data + "/" + name, m); };
+  auto gauss_bonnet = [](const Mesh& m) {
+    const lapmesh::Vertex_curvatures c = lapmesh::vertex_curvatures(m);
+    return c.gaussian.dot(c.area);
+  };
+  {
+    Mesh m;
+    read("tetrahedron.off", m);
+    EXPECT_EQ(num_vertices(m), 4u);
+    EXPECT_NEAR(gauss_bonnet(m), 4 * CGAL_PI, 1e-12);
+    EXPECT_GT(CGAL::Polygon_mesh_processing::volume(m), 0);  // outward
+  }
+  {
+    Mesh m;
+    const lapmesh::io::Soup_report r = read("square_pyramid.obj", m);
+    EXPECT_EQ(r.triangulated_polygons, 1u);
+    EXPECT_EQ(num_faces(m), 6u);
+    EXPECT_NEAR(gauss_bonnet(m), 4 * CGAL_PI, 1e-12);
+    EXPECT_NEAR(CGAL::Polygon_mesh_processing::volume(m), 4.0 / 3.0, 1e-14);  // base 4, height 1
+  }
+  {
+    Mesh m;
+    read("flat_hexagon.off", m);
+    const lapmesh::Vertex_curvatures c = lapmesh::vertex_curvatures(m);
+    EXPECT_NEAR(c.mean[0], 0, 1e-12);
+    EXPECT_NEAR(c.gaussian[0], 0, 1e-12);
+    // Boundary vertices: K A = pi - (interior angle 2 pi / 3 split over two triangles) = pi / 3.
+    for(int i = 1; i < 7; ++i) EXPECT_NEAR(c.gaussian[i] * c.area[i], CGAL_PI / 3, 1e-12) << i;
+  }
+  {
+    Mesh m;
+    try {
+      read("bad_nonmanifold_edge.off", m);
+      ADD_FAILURE() << "a non-manifold edge was accepted";
+    } catch(const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find("non-manifold"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("face 2: edge (0, 1)"), std::string::npos) << e.what();
+    }
+  }
+  {
+    Mesh m;
+    const lapmesh::io::Soup_report r = read("flipped_face.off", m);
+    EXPECT_EQ(r.flipped_faces, 1u);
+    EXPECT_NEAR(CGAL::Polygon_mesh_processing::area(m), 1.0, 1e-15);
+  }
 }
