@@ -258,6 +258,50 @@ TEST(Smoothing, TimeStepUnitsAndAutomaticStep)
     EXPECT_NEAR(std::sqrt((s.point(v) - CGAL::ORIGIN).squared_length()), expected, 0.03 * expected);
 }
 
+namespace {
+// A solver traits object whose factorisation always fails: the smoothing must report it.
+struct Failing_solver
+{
+  using Matrix = CGAL::Eigen_sparse_matrix<double>;
+  using Vector = CGAL::Eigen_vector<double>;
+  using NT = double;
+  bool factor(const Matrix&, NT&) { return false; }
+  bool linear_solver(const Vector&, Vector&) { return false; }
+};
+} // namespace
+
+TEST(Smoothing, UserSparseLinearSolverIsUsed)
+{
+  // CGAL's sparse_linear_solver: a direct LDL^T and CGAL's default iterative solver (BiCGSTAB
+  // with incomplete LU) give the result of the built-in solver; a failing one is reported.
+  const Mesh input = to_mesh(lapmesh::bumpy_sphere(3));
+  const double lambda = lapmesh::scale_free_time_step(input, 1.0);
+  const auto its = CGAL::parameters::number_of_iterations(3);
+  Mesh ref = input, direct = input, iterative = input, conformal_ref = input, conformal = input;
+  lapmesh::smooth_laplacian_implicit(ref, lambda, its);
+  using Ldlt = CGAL::Eigen_solver_traits<Eigen::SimplicialLDLT<CGAL::Eigen_sparse_matrix<double>::EigenType>>;
+  const auto rd = lapmesh::smooth_laplacian_implicit(direct, lambda, its.sparse_linear_solver(Ldlt()));
+  lapmesh::smooth_laplacian_implicit(iterative, lambda, its.sparse_linear_solver(CGAL::Eigen_solver_traits<>()));
+  lapmesh::smooth_conformal_flow(conformal_ref, lambda, its);
+  lapmesh::smooth_conformal_flow(conformal, lambda, its.sparse_linear_solver(Ldlt()));
+  EXPECT_EQ(rd.factorizations, 3);
+  double d_direct = 0, d_iterative = 0, d_conformal = 0, moved = 0;
+  for(auto v : vertices(input)) {
+    d_direct = std::max(d_direct, std::sqrt(CGAL::squared_distance(ref.point(v), direct.point(v))));
+    d_iterative = std::max(d_iterative, std::sqrt(CGAL::squared_distance(ref.point(v), iterative.point(v))));
+    d_conformal = std::max(d_conformal, std::sqrt(CGAL::squared_distance(conformal_ref.point(v), conformal.point(v))));
+    moved = std::max(moved, std::sqrt(CGAL::squared_distance(ref.point(v), input.point(v))));
+  }
+  EXPECT_GT(moved, 1e-3);
+  EXPECT_LT(d_direct, 1e-12);
+  EXPECT_LT(d_conformal, 1e-12);
+  EXPECT_LT(d_iterative, 1e-8);
+  EXPECT_GT(d_iterative, 0.0);  // a different solver really ran
+  Mesh failing = input;
+  EXPECT_THROW(lapmesh::smooth_laplacian_implicit(failing, lambda, its.sparse_linear_solver(Failing_solver())),
+               lapmesh::Numerical_error);
+}
+
 TEST(Smoothing, ExplicitSkipsLanczosWhenGershgorinProvesStability)
 {
   Mesh m = to_mesh(lapmesh::icosphere(3));

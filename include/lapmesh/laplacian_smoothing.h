@@ -24,6 +24,9 @@
 #include <CGAL/boost/graph/named_params_helper.h>
 
 #include <functional>
+#include <memory>
+#include <utility>
+#include <type_traits>
 
 namespace lapmesh {
 
@@ -49,6 +52,17 @@ LAPMESH_NAMED_PARAMETER(reuse_factorization)
 
 namespace internal {
 
+/// Whether a CGAL solver traits type can factorise once and solve many times
+/// (SparseLinearAlgebraWithFactorTraits_d) or only solve with the matrix (SparseLinearAlgebraTraits_d).
+template <typename Solver, typename = void>
+struct has_factor : std::false_type
+{};
+template <typename Solver>
+struct has_factor<Solver, std::void_t<decltype(std::declval<Solver&>().factor(
+                            std::declval<const typename Solver::Matrix&>(), std::declval<typename Solver::NT&>()))>>
+  : std::true_type
+{};
+
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
 Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double lambda, const NamedParameters& np)
 {
@@ -71,6 +85,39 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.reuse_factorization = choose_parameter(get_parameter(np, internal_np::reuse_factorization), false);
   if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value)
     s.progress = get_parameter(np, internal_np::progress_callback);
+  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::sparse_linear_solver_t>::value) {
+    // A CGAL solver traits object (SparseLinearAlgebraWithFactorTraits_d, e.g.
+    // CGAL::Eigen_solver_traits<...>): factor() once per system, linear_solver() per column.
+    using Solver = std::decay_t<decltype(get_parameter(np, CGAL::internal_np::sparse_linear_solver))>;
+    auto solver = std::make_shared<Solver>(get_parameter(np, CGAL::internal_np::sparse_linear_solver));
+    auto matrix = std::make_shared<typename Solver::Matrix>();  // factor() may keep a pointer to it
+    s.external_solver.factor = [solver, matrix](const Eigen::SparseMatrix<double>& full) {
+      *matrix = typename Solver::Matrix(full);
+      if constexpr(has_factor<Solver>::value) {
+        typename Solver::NT D;
+        return solver->factor(*matrix, D);
+      } else {
+        return true;  // SparseLinearAlgebraTraits_d only: every solve takes the matrix
+      }
+    };
+    s.external_solver.solve = [solver, matrix](const Eigen::MatrixXd& B, Eigen::MatrixXd& X) {
+      X.resize(B.rows(), B.cols());
+      for(Index c = 0; c < B.cols(); ++c) {
+        typename Solver::Vector b(std::size_t(B.rows())), x(std::size_t(B.rows()));
+        for(Index i = 0; i < B.rows(); ++i) b[i] = B(i, c);
+        bool ok;
+        if constexpr(has_factor<Solver>::value) {
+          ok = solver->linear_solver(b, x);
+        } else {
+          typename Solver::NT D;
+          ok = solver->linear_solver(*matrix, b, x, D) && D == 1;
+        }
+        if(!ok) return false;
+        for(Index i = 0; i < B.rows(); ++i) X(i, c) = x[i];
+      }
+      return true;
+    };
+  }
 
   std::vector<char> fixed(mesh.vertices.size(), 0);
   if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
@@ -112,6 +159,10 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 ///   - `lapmesh::parameters::laplacian` (default cotangent), `vertex_area` (default barycentric)
 ///   - `lapmesh::parameters::fixed_operator` (default false), `restore_volume` (default false),
 ///     `progress_callback`
+///   - `CGAL::parameters::sparse_linear_solver` (implicit and conformal schemes: a model of CGAL's
+///     `SparseLinearAlgebraWithFactorTraits_d`, e.g. `CGAL::Eigen_solver_traits<Eigen::SimplicialLDLT<...>>`,
+///     factorised once per system, or of `SparseLinearAlgebraTraits_d`, e.g. the iterative
+///     `CGAL::Eigen_solver_traits<>`; default: CHOLMOD when compiled in, else Eigen's SimplicialLDLT)
 /// @throws std::invalid_argument for lambda <= 0 or NaN and iterations <= 0; Mesh_error for
 ///   invalid meshes or a non-positive vertex area; Numerical_error when the flow diverges.
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,

@@ -168,7 +168,15 @@ class Spd_direct_solver
 {
 public:
   using SpMat = Eigen::SparseMatrix<double>;
-  explicit Spd_direct_solver(bool use_cholmod)
+  /// A user's solver (CGAL's `sparse_linear_solver`): factorises the full symmetric matrix,
+  /// then solves one right-hand side block.
+  struct External
+  {
+    std::function<bool(const SpMat& full)> factor;
+    std::function<bool(const Eigen::MatrixXd& B, Eigen::MatrixXd& X)> solve;
+  };
+
+  explicit Spd_direct_solver(bool use_cholmod, External external = {}) : m_external(std::move(external))
   {
 #ifdef LAPMESH_HAS_CHOLMOD
     m_cholmod = use_cholmod;
@@ -176,10 +184,14 @@ public:
     (void)use_cholmod;
 #endif
   }
-  const char* name() const { return m_cholmod ? "cholmod-supernodal" : "eigen-ldlt"; }
+  const char* name() const
+  {
+    return m_external.factor ? "sparse_linear_solver" : m_cholmod ? "cholmod-supernodal" : "eigen-ldlt";
+  }
 
   void analyze(const SpMat& A, int planned_factorizations)
   {
+    if(m_external.factor) return;  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
       m_chol.cholmod().nmethods = 1;
@@ -200,6 +212,7 @@ public:
   /// False if the matrix is not (numerically) positive definite.
   bool factorize(const SpMat& A)
   {
+    if(m_external.factor) return m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
       m_chol.factorize(A);
@@ -212,6 +225,12 @@ public:
   template <typename Rhs, typename Solution>
   bool solve(const Rhs& B, Solution& X)
   {
+    if(m_external.solve) {
+      Eigen::MatrixXd x;
+      if(!m_external.solve(Eigen::MatrixXd(B), x) || x.rows() != B.rows() || x.cols() != B.cols()) return false;
+      X = x;
+      return true;
+    }
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
       X = m_chol.solve(B);
@@ -223,6 +242,7 @@ public:
   }
 
 private:
+  External m_external;
   bool m_cholmod = false;
   Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> m_ldlt;
 #ifdef LAPMESH_HAS_CHOLMOD
@@ -246,6 +266,7 @@ struct Smoothing_settings
   /// factor (relative residual 1e-12) and refactorise only when that needs > 10 iterations.
   bool reuse_factorization = false;
   std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
+  Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
 
 inline void check_settings(const Smoothing_settings& s)
@@ -393,7 +414,7 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     std::copy(a_inner.begin(), a_inner.end(), A.innerIndexPtr());
   }
   const int planned_factorizations = (rebuild_stiffness || rebuild_mass) ? s.iterations : 1;
-  Spd_direct_solver solver(s.use_cholmod);
+  Spd_direct_solver solver(s.use_cholmod, s.external_solver);
   solver.analyze(A, planned_factorizations);
   report.solver = solver.name();
   report.analysis_seconds += seconds_since(t0);
