@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <string>
 
 #include <unistd.h>
 
@@ -18,7 +19,13 @@ namespace {
 std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
 {
   if(!::isatty(2)) return {};
-  return [](const lapmesh::Spectral_progress& p) {
+  // The block solver reports after every block step (hundreds per second on small meshes):
+  // redraw on a new stage or attempt, otherwise at most ten times a second.
+  return [last_stage = std::string(), last_attempt = 0, last_time = -1.0](const lapmesh::Spectral_progress& p) mutable {
+    if(p.stage == last_stage && p.attempt == last_attempt && p.elapsed_seconds < last_time + 0.1) return;
+    last_stage = p.stage;
+    last_attempt = p.attempt;
+    last_time = p.elapsed_seconds;
     std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
                  p.elapsed_seconds);
     std::fflush(stderr);
