@@ -25,6 +25,8 @@
 #include <future>
 #include <thread>
 
+#include <unistd.h>
+
 namespace {
 
 using Kernel = CGAL::Simple_cartesian<double>;
@@ -77,7 +79,10 @@ class ViewerApi : public ::testing::Test
 protected:
   static void SetUpTestSuite()
   {
-    tmp = fs::path(LAPMESH_TEST_TMP) / "viewer_api";
+    // One directory per process: ctest runs every TEST in its own process, two at a time, and a
+    // shared directory removed here by one process under another one's feet made the other's
+    // set-up fail (which gtest reports as skipped tests).
+    tmp = fs::path(LAPMESH_TEST_TMP) / ("viewer_api." + std::to_string(::getpid()));
     fs::remove_all(tmp);
     fs::create_directories(tmp / "assets" / "sub");
     std::ofstream(tmp / "assets" / "index.html") << "<!doctype html><title>test page</title>";
@@ -93,6 +98,8 @@ protected:
   {
     delete server;
     server = nullptr;
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
   }
 
   static httplib::Client client()
