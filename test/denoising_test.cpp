@@ -271,7 +271,7 @@ std::string slurp(const std::string& path)
 
 Cli_result run_study_cli(const std::string& args)
 {
-  const std::string tmp = std::string(LAPMESH_TEST_TMP);
+  const std::string tmp = lapmesh_test::scratch_dir();
   const std::string cmd = std::string(LAPMESH_CLI) + " denoise-study " + args + " >" + tmp + "/study_stdout.txt 2>" + tmp +
                           "/study_stderr.txt";
   const int raw = std::system(cmd.c_str());
@@ -282,13 +282,13 @@ Cli_result run_study_cli(const std::string& args)
 
 TEST(DenoisingCli, BadLevelsLambdasOrIterationsFailCleanly)
 {
-  const std::string in = std::string(LAPMESH_TEST_TMP) + "/study_in.off";
+  const std::string in = lapmesh_test::scratch_dir() + "/study_in.off";
   {
     const auto [P, tris] = lapmesh::io::mesh_arrays(to_mesh(lapmesh::icosphere(1)));
     lapmesh::io::write_mesh(in, P, tris);
   }
-  const std::string out = std::string(LAPMESH_TEST_TMP) + "/study_bad.csv";
-  const std::string svg = std::string(LAPMESH_TEST_TMP) + "/study_bad.svg";
+  const std::string out = lapmesh_test::scratch_dir() + "/study_bad.csv";
+  const std::string svg = lapmesh_test::scratch_dir() + "/study_bad.svg";
   const std::vector<std::string> bad = {
     "--levels -0.1",        "--levels abc",          "--levels 0.02,,0.1",  "--levels nan",
     "--levels ''",          "--lambdas 0",           "--lambdas 0.1,-1",    "--lambdas inf",
@@ -307,12 +307,12 @@ TEST(DenoisingCli, BadLevelsLambdasOrIterationsFailCleanly)
 
 TEST(DenoisingCli, WritesOneRowPerIterationAndReportsTheBest)
 {
-  const std::string in = std::string(LAPMESH_TEST_TMP) + "/study_in2.off";
+  const std::string in = lapmesh_test::scratch_dir() + "/study_in2.off";
   {
     const auto [P, tris] = lapmesh::io::mesh_arrays(to_mesh(lapmesh::bumpy_sphere(2)));
     lapmesh::io::write_mesh(in, P, tris);
   }
-  const std::string out = std::string(LAPMESH_TEST_TMP) + "/study.csv", svg = std::string(LAPMESH_TEST_TMP) + "/study.svg";
+  const std::string out = lapmesh_test::scratch_dir() + "/study.csv", svg = lapmesh_test::scratch_dir() + "/study.svg";
   std::filesystem::remove(out);
   std::filesystem::remove(svg);
   const Cli_result r = run_study_cli(in + " -o " + out + " --plot " + svg + " --levels 0.02,0.1 --lambdas 0.1,1 --iterations 3");

@@ -556,7 +556,7 @@ TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
     "--lambda 0 --iterations 3",      "--lambda -0.5 --iterations 3", "--lambda nan --iterations 3",
     "--lambda inf --iterations 3",    "--lambda abc --iterations 3",  "--lambda 0.01 --iterations 0",
     "--lambda 0.01 --iterations -2"};
-  for(const std::string& scheme : {"explicit", "implicit"})
+  for(const std::string scheme : {"explicit", "implicit"})
     for(const std::string& args : bad) {
       std::filesystem::remove(out);
       const Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme " + scheme + " " + args);
