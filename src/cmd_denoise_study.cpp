@@ -73,14 +73,6 @@ std::vector<T> parse_names(const std::string& input, const std::string& option, 
   return out;
 }
 
-std::optional<lapmesh::Smoothing_scheme> parse_scheme(const std::string& s)
-{
-  if(s == "explicit") return lapmesh::Smoothing_scheme::explicit_euler;
-  if(s == "implicit") return lapmesh::Smoothing_scheme::implicit_euler;
-  if(s == "conformal") return lapmesh::Smoothing_scheme::conformal;
-  return std::nullopt;
-}
-
 std::string format(double v)
 {
   char buf[32];
@@ -193,7 +185,7 @@ void run(const Study_options& o)
   lapmesh::Denoising_study_settings s;
   s.noise_levels = parse_numbers(o.input, "--levels", o.levels, true);
   s.time_steps = parse_numbers(o.input, "--lambdas", o.lambdas, false);
-  s.schemes = parse_names<lapmesh::Smoothing_scheme>(o.input, "--schemes", o.schemes, "explicit, implicit, conformal", parse_scheme);
+  s.schemes = parse_names<lapmesh::Smoothing_scheme>(o.input, "--schemes", o.schemes, "explicit, implicit, conformal", lapmesh::parse_smoothing_scheme);
   s.laplacians = parse_names<lapmesh::Laplacian>(o.input, "--laplacians", o.laplacians, "uniform, cotangent",
                                                  [](const std::string& v) { return lapmesh::parse_laplacian(v); });
   if(o.iterations <= 0)
@@ -202,9 +194,7 @@ void run(const Study_options& o)
   if(!(o.hausdorff_spacing > 0) || !std::isfinite(o.hausdorff_spacing))
     throw Failure(o.input + ": --hausdorff-spacing must be a positive number");
   s.iterations = int(o.iterations);
-  s.unit = o.lambda_unit == "absolute" ? lapmesh::Time_step_unit::absolute
-           : o.lambda_unit == "bound"  ? lapmesh::Time_step_unit::stability_bound
-                                       : lapmesh::Time_step_unit::mean_edge_length_squared;
+  s.unit = *lapmesh::parse_time_step_unit(o.lambda_unit);  // CLI11 checked the name
   s.seed = o.seed;
   s.noise_direction = o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic;
   s.area = area_from(o.area);

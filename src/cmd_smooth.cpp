@@ -42,9 +42,7 @@ void run(const Smooth_options& o)
   check_output_path(o.output, {"off", "obj", "ply", "stl"});
 
   Mesh mesh = load_mesh(o.input);
-  const auto scheme = o.scheme == "explicit" ? lapmesh::Smoothing_scheme::explicit_euler
-                      : o.scheme == "implicit" ? lapmesh::Smoothing_scheme::implicit_euler
-                                               : lapmesh::Smoothing_scheme::conformal;
+  const auto scheme = *lapmesh::parse_smoothing_scheme(o.scheme);  // CLI11 checked the names
   const auto lap = laplacian_from(o.laplacian);
   const auto area = area_from(o.area);
   const auto base = lapmesh::parameters::vertex_area(area, lapmesh::parameters::laplacian(lap));
@@ -59,11 +57,8 @@ void run(const Smooth_options& o)
   lapmesh::Smoothing_report report;
   double lambda = lambda_value;
   try {
-    const auto unit = o.lambda_unit == "bound"   ? lapmesh::Time_step_unit::stability_bound
-                      : o.lambda_unit == "edge2" ? lapmesh::Time_step_unit::mean_edge_length_squared
-                                                 : lapmesh::Time_step_unit::absolute;
     lambda = lambda_auto ? lapmesh::automatic_time_step(mesh, scheme, base)
-                         : lapmesh::time_step(mesh, lambda_value, unit, base);
+                         : lapmesh::time_step(mesh, lambda_value, *lapmesh::parse_time_step_unit(o.lambda_unit), base);
 
     auto np = lapmesh::parameters::reuse_factorization(o.reuse_factorization, lapmesh::parameters::progress_callback(
       progress, lapmesh::parameters::restore_volume(

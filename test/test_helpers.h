@@ -17,6 +17,8 @@
 #include <filesystem>
 #include <string>
 
+#include <unistd.h>
+
 namespace lapmesh_test {
 
 using Kernel = CGAL::Simple_cartesian<double>;
@@ -38,11 +40,17 @@ inline std::string cgal_mesh(const std::string& name) { return std::string(LAPME
 #ifdef LAPMESH_TEST_TMP
 /// A scratch directory of the running test, created on first use. ctest runs every TEST in a
 /// process of its own, two at a time: fixed file names shared between tests would let
-/// concurrent tests overwrite each other's inputs and captured output.
+/// concurrent tests overwrite each other's inputs and captured output. Outside a test (in a
+/// suite's SetUpTestSuite) the directory is the suite's, made unique by the process id, since
+/// every process runs that set-up.
 inline std::string scratch_dir()
 {
-  const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "outside_a_test";
+  const ::testing::UnitTest* unit = ::testing::UnitTest::GetInstance();
+  const ::testing::TestInfo* info = unit->current_test_info();
+  const ::testing::TestSuite* suite = unit->current_test_suite();
+  std::string name = info    ? std::string(info->test_suite_name()) + "." + info->name()
+                     : suite ? std::string(suite->name()) + ".set_up." + std::to_string(::getpid())
+                             : "outside_a_test." + std::to_string(::getpid());
   std::replace(name.begin(), name.end(), '/', '_');
   const std::string dir = std::string(LAPMESH_TEST_TMP) + "/" + name;
   std::filesystem::create_directories(dir);

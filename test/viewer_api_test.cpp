@@ -1,6 +1,7 @@
 // The HTTP API of `lapmesh view` (src/viewer/viewer_server.h), served in process on a free
 // loopback port: every endpoint, the values it serves (bitwise equal to the library's), and
 // hostile or malformed requests, after which the server must still answer.
+#include "test_helpers.h"
 #include "viewer_server.h"
 
 #include <lapmesh/colormap.h>
@@ -24,8 +25,6 @@
 #include <fstream>
 #include <future>
 #include <thread>
-
-#include <unistd.h>
 
 namespace {
 
@@ -79,10 +78,9 @@ class ViewerApi : public ::testing::Test
 protected:
   static void SetUpTestSuite()
   {
-    // One directory per process: ctest runs every TEST in its own process, two at a time, and a
-    // shared directory removed here by one process under another one's feet made the other's
-    // set-up fail (which gtest reports as skipped tests).
-    tmp = fs::path(LAPMESH_TEST_TMP) / ("viewer_api." + std::to_string(::getpid()));
+    // A directory of this process's own: another process runs this set-up at the same time, and
+    // removing a shared one under its feet made its set-up fail (gtest then reports skipped tests).
+    tmp = fs::path(lapmesh_test::scratch_dir());
     fs::remove_all(tmp);
     fs::create_directories(tmp / "assets" / "sub");
     std::ofstream(tmp / "assets" / "index.html") << "<!doctype html><title>test page</title>";

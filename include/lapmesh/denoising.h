@@ -230,11 +230,6 @@ inline const char* to_string(Run_status s)
 {
   return s == Run_status::ok ? "ok" : s == Run_status::diverged ? "diverged" : "failed";
 }
-/// The name of a scheme as the command line spells it: "explicit", "implicit" or "conformal".
-inline const char* to_string(Smoothing_scheme s)
-{
-  return s == Smoothing_scheme::explicit_euler ? "explicit" : s == Smoothing_scheme::implicit_euler ? "implicit" : "conformal";
-}
 
 /// One measurement: the state after `iteration` steps (0: the noisy mesh).
 struct Denoising_record

@@ -673,12 +673,16 @@ inline std::vector<std::array<std::size_t, 3>> triangle_list(const lapmesh::inte
 }
 
 /// Positions and triangles of a face graph in vertex-index order (the order in which
-/// triangles_to_mesh() added the vertices, for meshes it built).
+/// triangles_to_mesh() added the vertices, for meshes it built). Reads the arrays only: no
+/// topology is built (writing a mesh does not need one).
 template <typename FaceGraph>
 std::pair<Vertex_vectors, std::vector<std::array<std::size_t, 3>>> mesh_arrays(const FaceGraph& g)
 {
-  auto mesh = lapmesh::internal::extract_mesh(g, CGAL::parameters::default_values());
-  return {std::move(mesh.positions), triangle_list(mesh.topology)};
+  auto arrays = lapmesh::internal::extract_arrays(g, CGAL::parameters::default_values());
+  std::vector<std::array<std::size_t, 3>> tris(arrays.triangles.size() / 3);
+  for(std::size_t f = 0; f < tris.size(); ++f)
+    for(std::size_t c = 0; c < 3; ++c) tris[f][c] = std::size_t(arrays.triangles[3 * f + c]);
+  return {std::move(arrays.positions), std::move(tris)};
 }
 
 } // namespace io

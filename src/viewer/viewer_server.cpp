@@ -543,16 +543,11 @@ struct Server::Impl
     const bool restore_volume = p.boolean("restore_volume", false);
     p.finish();
 
-    const auto sch = scheme == "explicit"   ? lapmesh::Smoothing_scheme::explicit_euler
-                     : scheme == "implicit" ? lapmesh::Smoothing_scheme::implicit_euler
-                                            : lapmesh::Smoothing_scheme::conformal;
+    const auto sch = *lapmesh::parse_smoothing_scheme(scheme);  // p.choice checked the name
     const auto base = LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap)));
     s.set_stage("time step");
-    const auto time_unit = unit == "bound"   ? lapmesh::Time_step_unit::stability_bound
-                           : unit == "edge2" ? lapmesh::Time_step_unit::mean_edge_length_squared
-                                             : lapmesh::Time_step_unit::absolute;
     const double lambda = lambda_auto ? lapmesh::automatic_time_step(s.current, sch, base)
-                                      : lapmesh::time_step(s.current, lambda_value, time_unit, base);
+                                      : lapmesh::time_step(s.current, lambda_value, *lapmesh::parse_time_step_unit(unit), base);
     s.total = iterations;
     s.set_stage("smoothing");
     Mesh work = s.current;  // a cancelled or failed run leaves the mesh as it was

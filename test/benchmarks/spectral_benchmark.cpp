@@ -163,50 +163,44 @@ void BM_breakdown(benchmark::State& state)
   state.counters["solve_ms"] = 1e3 * t_solve;
   state.counters["nnz_L"] = nnz;
 }
-void BM_ncv(benchmark::State& state)
+// Times Spectral_basis::from_pencil on case range(0) for k = range(1) with `opt`.
+void time_basis(benchmark::State& state, const lapmesh::Spectral_options& opt)
 {
   const auto& p = pencil(int(state.range(0)));
-  lapmesh::Spectral_options opt;
-  opt.ncv_factor = double(state.range(2)) / 10;
   long long ops = 0;
   for(auto _ : state) {
     const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
     ops = b.operations();
   }
+  state.counters["n"] = double(p.mass.size());
   state.counters["solves"] = double(ops);
 }
-// Block Lanczos: block size and basis size (ncv_factor / 10).
+// Krylov basis size: ncv_factor = range(2) / 10.
+void BM_ncv(benchmark::State& state)
+{
+  lapmesh::Spectral_options opt;
+  opt.ncv_factor = double(state.range(2)) / 10;
+  time_basis(state, opt);
+}
+// Block Lanczos: block size range(2), basis size ncv_factor = range(3) / 10, one run.
 void BM_block(benchmark::State& state)
 {
-  const auto& p = pencil(int(state.range(0)));
   lapmesh::Spectral_options opt;
   opt.block_size = int(state.range(2));
   opt.ncv_factor = double(state.range(3)) / 10;
   opt.band_size = 0;
-  long long ops = 0;
-  for(auto _ : state) {
-    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
-    ops = b.operations();
-  }
-  state.counters["n"] = double(p.mass.size());
-  state.counters["solves"] = double(ops);
+  time_basis(state, opt);
+}
+// Bands of range(2) pairs.
+void BM_banded(benchmark::State& state)
+{
+  lapmesh::Spectral_options opt;
+  opt.band_size = int(state.range(2));
+  time_basis(state, opt);
 }
 BENCHMARK(BM_block)->ArgsProduct({{2}, {30}, {4, 8, 16}, {20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_block)->ArgsProduct({{3}, {100}, {8, 16}, {15, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ncv)->ArgsProduct({{1, 3}, {30, 100}, {12, 15, 20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_banded(benchmark::State& state)
-{
-  const auto& p = pencil(int(state.range(0)));
-  lapmesh::Spectral_options opt;
-  opt.band_size = int(state.range(2));
-  long long ops = 0;
-  for(auto _ : state) {
-    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
-    ops = b.operations();
-  }
-  state.counters["n"] = double(p.mass.size());
-  state.counters["solves"] = double(ops);
-}
 BENCHMARK(BM_banded)->ArgsProduct({{3}, {100, 300}, {25, 40, 60}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_banded)->ArgsProduct({{0}, {1000}, {40, 60, 100}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_banded)->ArgsProduct({{1, 2}, {30}, {15, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);

@@ -29,6 +29,16 @@
 namespace lapmesh {
 namespace internal {
 
+/// Positions and triangles as read, before any topology is built (what writing a mesh needs).
+template <typename TriangleMesh>
+struct Extracted_arrays
+{
+  using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
+  Positions positions;
+  std::vector<Index> triangles;             ///< 3 vertex indices per face, in face order
+  std::vector<vertex_descriptor> vertices;  ///< vertex of each index
+};
+
 template <typename TriangleMesh>
 struct Extracted_mesh
 {
@@ -39,11 +49,10 @@ struct Extracted_mesh
 };
 
 template <typename TriangleMesh, typename VertexIndexMap, typename VertexPointMap>
-Extracted_mesh<TriangleMesh> extract_with_index_map(const TriangleMesh& tm, VertexIndexMap vim,
-                                                    VertexPointMap vpm)
+Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, VertexIndexMap vim, VertexPointMap vpm)
 {
   using GT = boost::graph_traits<TriangleMesh>;
-  Extracted_mesh<TriangleMesh> out;
+  Extracted_arrays<TriangleMesh> out;
   const Index n = static_cast<Index>(vertices(tm).size());
   out.vertices.resize(n);
   out.positions.resize(n, 3);
@@ -61,7 +70,7 @@ Extracted_mesh<TriangleMesh> extract_with_index_map(const TriangleMesh& tm, Vert
                        Mesh_error::Element::vertex, id);
     out.positions.row(id) << x, y, z;
   }
-  std::vector<Index> triangles;
+  std::vector<Index>& triangles = out.triangles;
   triangles.reserve(3 * faces(tm).size());
   Index f_index = 0;
   for(typename GT::face_descriptor f : faces(tm)) {
@@ -74,7 +83,6 @@ Extracted_mesh<TriangleMesh> extract_with_index_map(const TriangleMesh& tm, Vert
     triangles.push_back(static_cast<Index>(get(vim, target(next(next(h, tm), tm), tm))));
     ++f_index;
   }
-  out.topology = build_topology(n, std::move(triangles));
   return out;
 }
 
@@ -91,11 +99,10 @@ struct Compacted_index_map
   friend Index get(const Compacted_index_map& m, const key_type& k) { return (*m.dense)[get(m.internal, k)]; }
 };
 
-/// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
-/// vertex_index_map). Throws Mesh_error on non-triangle faces, non-finite coordinates,
-/// isolated vertices and non-manifold edges.
+/// Reads the positions and triangles of `tm` (named parameters: vertex_point_map,
+/// vertex_index_map). Throws Mesh_error on non-triangle faces and non-finite coordinates.
 template <typename TriangleMesh, typename NamedParameters>
-Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np)
+Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const NamedParameters& np)
 {
   using CGAL::parameters::choose_parameter;
   using CGAL::parameters::get_parameter;
@@ -106,7 +113,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   constexpr bool has_index_map =
     !is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value;
   if constexpr(has_index_map) {
-    return extract_with_index_map(tm, get_parameter(np, CGAL::internal_np::vertex_index), vpm);
+    return read_with_index_map(tm, get_parameter(np, CGAL::internal_np::vertex_index), vpm);
   } else if constexpr(CGAL::graph_has_property<TriangleMesh, boost::vertex_index_t>::value) {
     // The internal index (Surface_mesh: v.idx()) may have holes left by removed elements:
     // compact it. (CGAL's dynamic maps on a const Surface_mesh are sized num_vertices() and
@@ -117,14 +124,28 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
     std::vector<Index> dense(bound, -1);
     Index i = 0;
     for(auto v : vertices(tm)) dense[get(internal, v)] = i++;
-    return extract_with_index_map(tm, Compacted_index_map<decltype(internal)>{internal, &dense}, vpm);
+    return read_with_index_map(tm, Compacted_index_map<decltype(internal)>{internal, &dense}, vpm);
   } else {
     using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
     auto dense = get(CGAL::dynamic_vertex_property_t<Index>(), tm);
     Index i = 0;
     for(vertex_descriptor v : vertices(tm)) put(dense, v, i++);
-    return extract_with_index_map(tm, dense, vpm);
+    return read_with_index_map(tm, dense, vpm);
   }
+}
+
+/// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
+/// vertex_index_map). Throws Mesh_error on non-triangle faces, non-finite coordinates,
+/// isolated vertices and non-manifold edges.
+template <typename TriangleMesh, typename NamedParameters>
+Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np)
+{
+  Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np);
+  Extracted_mesh<TriangleMesh> out;
+  out.topology = build_topology(Index(arrays.vertices.size()), std::move(arrays.triangles));
+  out.positions = std::move(arrays.positions);
+  out.vertices = std::move(arrays.vertices);
+  return out;
 }
 
 /// Writes per-vertex values (indexed like the extraction) into a vertex property map.

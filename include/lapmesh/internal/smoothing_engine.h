@@ -27,6 +27,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,31 @@ enum class Time_step_unit {
   mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
   stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the mesh
 };
+
+/// The name of a scheme as the command line spells it: "explicit", "implicit" or "conformal".
+inline const char* to_string(Smoothing_scheme s)
+{
+  return s == Smoothing_scheme::explicit_euler ? "explicit" : s == Smoothing_scheme::implicit_euler ? "implicit" : "conformal";
+}
+
+/// @brief returns the scheme named `s` ("explicit", "implicit", "conformal"), or nothing.
+inline std::optional<Smoothing_scheme> parse_smoothing_scheme(const std::string& s)
+{
+  if(s == "explicit") return Smoothing_scheme::explicit_euler;
+  if(s == "implicit") return Smoothing_scheme::implicit_euler;
+  if(s == "conformal") return Smoothing_scheme::conformal;
+  return std::nullopt;
+}
+
+/// @brief returns the time-step unit named as on the command line ("absolute", "edge2" for
+/// mean edge lengths squared, "bound" for fractions of the stability bound), or nothing.
+inline std::optional<Time_step_unit> parse_time_step_unit(const std::string& s)
+{
+  if(s == "absolute") return Time_step_unit::absolute;
+  if(s == "edge2") return Time_step_unit::mean_edge_length_squared;
+  if(s == "bound") return Time_step_unit::stability_bound;
+  return std::nullopt;
+}
 
 /// What a smoothing run did. Times are wall-clock seconds spent in each phase.
 struct Smoothing_report
@@ -156,6 +182,17 @@ inline void volume_and_centroid(const Mesh_topology& t, const Positions& P, doub
   }
   volume = V / 6.0;
   centroid = V != 0 ? Eigen::Vector3d(c / (4.0 * V)) : Eigen::Vector3d::Zero();
+}
+
+/// Scales P about its volume centroid back to `volume0`, then moves that centroid to `centroid0`.
+inline void restore_volume_and_centroid(const Mesh_topology& t, Positions& P, double volume0,
+                                        const Eigen::Vector3d& centroid0)
+{
+  double V;
+  Eigen::Vector3d c;
+  volume_and_centroid(t, P, V, c);
+  const double f = std::cbrt(volume0 / V);
+  for(Index i = 0; i < P.rows(); ++i) P.row(i) = (P.row(i) - c.transpose()) * f + centroid0.transpose();
 }
 
 /// Sparse Cholesky of an SPD matrix given by its lower triangle: Eigen's SimplicialLDLT (AMD),
@@ -372,12 +409,7 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       });
       P.swap(next);
       report.solve_seconds += seconds_since(t0);
-      if(s.restore_volume) {
-        double V; Eigen::Vector3d c;
-        volume_and_centroid(t, P, V, c);
-        const double f = std::cbrt(volume0 / V);
-        for(Index i = 0; i < n; ++i) P.row(i) = (P.row(i) - c.transpose()) * f + centroid0.transpose();
-      }
+      if(s.restore_volume) restore_volume_and_centroid(t, P, volume0, centroid0);
       if(!P.allFinite())
         throw Numerical_error("explicit smoothing diverged at iteration " + std::to_string(it + 1) +
                               " (lambda " + std::to_string(s.lambda) + " is above the stability bound " +
@@ -506,12 +538,7 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     for(Index i = 0; i < n; ++i)
       if(free_mask[i]) P.row(i) = X.row(fid[i]);
     report.solve_seconds += seconds_since(t0);
-    if(s.restore_volume) {
-      double V; Eigen::Vector3d c;
-      volume_and_centroid(t, P, V, c);
-      const double f = std::cbrt(volume0 / V);
-      for(Index i = 0; i < n; ++i) P.row(i) = (P.row(i) - c.transpose()) * f + centroid0.transpose();
-    }
+    if(s.restore_volume) restore_volume_and_centroid(t, P, volume0, centroid0);
     ++report.iterations;
     if(s.progress) s.progress(it + 1, s.iterations);
   }
