@@ -31,6 +31,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <random>
@@ -40,29 +41,64 @@
 namespace lapmesh {
 namespace internal {
 
-/// C = V^T W for a tall V and a thin W, reading V once in row panels that stay in cache
-/// (Eigen's product would first copy all of V into its packed format: twice the memory traffic
-/// of a product that is memory bound anyway).
+#ifdef LAPMESH_HAS_BLAS
+// Fortran BLAS (every BLAS has it; the trailing lengths are gfortran's hidden string arguments).
+extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k,
+                       const double* alpha, const double* a, const int* lda, const double* b, const int* ldb,
+                       const double* beta, double* c, const int* ldc, std::size_t, std::size_t);
+#endif
+
+/// C = alpha op(A) B + beta C with op(A) = A or A^T, on column-major blocks (any outer stride).
+/// With LAPMESH_HAS_BLAS the BLAS library's dgemm does it: these products of a tall basis with a
+/// thin block are memory bound, and an optimised BLAS (OpenBLAS, run-time dispatched to the
+/// CPU's vector width) streams the basis 1.5-2.4x faster than Eigen compiled for generic x86-64
+/// (measured at 280k rows). Without it, Eigen in row panels that stay in cache (Eigen's product
+/// would otherwise copy the whole tall operand into its packed format first).
+inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eigen::MatrixXd>& A,
+                      const Eigen::Ref<const Eigen::MatrixXd>& B, double beta, Eigen::Ref<Eigen::MatrixXd> C)
+{
+  const Eigen::Index m = transpose_a ? A.cols() : A.rows(), k = transpose_a ? A.rows() : A.cols();
+  if(m == 0 || B.cols() == 0) return;
+#ifdef LAPMESH_HAS_BLAS
+  const int im = int(m), in = int(B.cols()), ik = int(k), lda = int(std::max<Eigen::Index>(1, A.outerStride())),
+            ldb = int(std::max<Eigen::Index>(1, B.outerStride())), ldc = int(std::max<Eigen::Index>(1, C.outerStride()));
+  dgemm_(transpose_a ? "T" : "N", "N", &im, &in, &ik, &alpha, A.data(), &lda, B.data(), &ldb, &beta, C.data(), &ldc, 1, 1);
+#else
+  if(beta != 1.0) C *= beta;
+  if(k == 0) return;
+  const Eigen::Index tall = A.rows();
+  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, A.cols()));
+  for(Eigen::Index r = 0; r < tall; r += panel) {
+    const Eigen::Index h = std::min(panel, tall - r);
+    if(transpose_a)
+      C.noalias() += alpha * (A.middleRows(r, h).transpose() * B.middleRows(r, h));
+    else
+      C.middleRows(r, h).noalias() += alpha * (A.middleRows(r, h) * B);
+  }
+#endif
+}
+
+/// C = V^T W for a tall V and a thin W.
 inline void panel_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& W,
                              Eigen::MatrixXd& C)
 {
-  C.setZero(V.cols(), W.cols());
-  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, V.cols()));
-  for(Eigen::Index r = 0; r < V.rows(); r += panel) {
-    const Eigen::Index h = std::min(panel, V.rows() - r);
-    C.noalias() += V.middleRows(r, h).transpose() * W.middleRows(r, h);
-  }
+  C.resize(V.cols(), W.cols());
+  tall_gemm(true, 1.0, V, W, 0.0, C);
 }
 
-/// W -= V C, by the same row panels.
+/// W -= V C.
 inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::MatrixXd& C,
                                    Eigen::Ref<Eigen::MatrixXd> W)
 {
-  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, V.cols()));
-  for(Eigen::Index r = 0; r < V.rows(); r += panel) {
-    const Eigen::Index h = std::min(panel, V.rows() - r);
-    W.middleRows(r, h).noalias() -= V.middleRows(r, h) * C;
-  }
+  tall_gemm(false, -1.0, V, C, 1.0, W);
+}
+
+/// Y = V Z for a tall V and a small Z.
+inline void panel_product_nn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                             Eigen::MatrixXd& Y)
+{
+  Y.resize(V.rows(), Z.cols());
+  tall_gemm(false, 1.0, V, Z, 0.0, Y);
 }
 
 struct Block_lanczos_options
@@ -111,14 +147,14 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   MatrixXd G, R2;
   auto orthonormalise = [&](MatrixXd& W, MatrixXd& R, Index filled) {
     const double scale = std::max(W.colwise().norm().maxCoeff(), 1e-300);
-    G.noalias() = W.transpose() * W;
+    panel_product_tn(W, W, G);
     Eigen::LLT<MatrixXd> llt1(G);
     if(llt1.info() == Eigen::Success) {
       R = llt1.matrixU();
       const double dmin = R.diagonal().cwiseAbs().minCoeff();
       if(dmin > 1e-7 * scale) {  // condition number < 1e7: CholeskyQR2 is accurate
         llt1.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
-        G.noalias() = W.transpose() * W;
+        panel_product_tn(W, W, G);
         Eigen::LLT<MatrixXd> llt2(G);
         if(llt2.info() == Eigen::Success) {
           llt2.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
@@ -229,7 +265,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         ++converged;
       if(converged >= nev) {
         out.values = theta.head(nev);
-        out.vectors.noalias() = V.leftCols(processed) * Z.leftCols(nev);
+        panel_product_nn(V.leftCols(processed), Z.leftCols(nev), out.vectors);
         out.restarts = restart;
         return out;
       }
@@ -241,7 +277,8 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         // Keep the wanted Ritz vectors and a third of the rest: the rest speeds up convergence of
         // the last wanted ones; the new room lets the Krylov space grow again.
         const Index keep = std::min(processed - b, std::max(nev, nev + (processed - nev) / 3));
-        MatrixXd kept = V.leftCols(processed) * Z.leftCols(keep);
+        MatrixXd kept;
+        panel_product_nn(V.leftCols(processed), Z.leftCols(keep), kept);
         const MatrixXd next = V.middleCols(processed, b);
         V.leftCols(keep) = kept;
         V.middleCols(keep, b) = next;

@@ -31,9 +31,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
-#ifdef LAPMESH_HAS_CHOLMOD
-#include <Eigen/CholmodSupport>
-#endif
+#include <lapmesh/internal/cholmod.h>
 
 #include <Spectra/SymEigsShiftSolver.h>
 
@@ -144,16 +142,35 @@ private:
   const std::function<void(long long)>& m_on_op;
 };
 
-/// Number of eigenvalues of -S phi = lambda M phi strictly below tau (Sylvester's inertia).
+/// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
+/// permutation: the completeness check factorises a matrix of the same pattern with it, which
+/// spares a second ordering (about a quarter of the check's time at 280k vertices).
+using Fill_permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
+inline Fill_permutation fill_permutation(const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>& f)
+{
+  return f.permutationP();
+}
+#ifdef LAPMESH_HAS_CHOLMOD
+inline Fill_permutation fill_permutation(const Cholmod_supernodal_llt& f)
+{
+  // CHOLMOD: row i of the factor is row Perm[i] of K; Eigen: P maps old index to new.
+  const Eigen::Index n = f.rows();
+  Fill_permutation P(n);
+  for(Eigen::Index i = 0; i < n; ++i) P.indices()[f.permutation()[i]] = int(i);
+  return P;
+}
+#endif
+
+/// Number of eigenvalues of -S phi = lambda M phi strictly below tau (Sylvester's inertia): the
+/// negative pivots of the LDL^T factorisation of P (-S - tau M) P^T, P a fill-reducing ordering.
 inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
-                                            double tau,
-                                            Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>& ldlt,
-                                            bool analysed)
+                                            double tau, const Fill_permutation& P)
 {
   Eigen::SparseMatrix<double> K = minus_S;
   K.diagonal() -= tau * mass;
-  if(!analysed) ldlt.analyzePattern(K);
-  ldlt.factorize(K);
+  Eigen::SparseMatrix<double> Kp(K.rows(), K.cols());
+  Kp.selfadjointView<Eigen::Lower>() = K.selfadjointView<Eigen::Lower>().twistedBy(P);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(Kp);
   if(ldlt.info() != Eigen::Success)
     throw Numerical_error("spectral completeness check: the LDL^T factorisation of -S - tau M failed (tau = " +
                           std::to_string(tau) + ")");
@@ -407,9 +424,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
   Factor factor;
   factorise_or_throw(factor, K);
   K = Eigen::SparseMatrix<double>();
-
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt;
-  bool analysed = false;
+  const Fill_permutation P = opt.check_completeness ? fill_permutation(factor) : Fill_permutation();
   long long total_ops = 0;
   const std::function<void(long long)> on_op = [&](long long ops) {
     if(opt.progress) report("lanczos", ops);
@@ -426,8 +441,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
     if(j >= 0) {
       report("checking completeness", total_ops);
       const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
-      const Eigen::Index below = count_eigenvalues_below(minus_S, mass, tau, ldlt, analysed);
-      analysed = true;
+      const Eigen::Index below = count_eigenvalues_below(minus_S, mass, tau, P);
       if(below == j + 1) {
         pairs.values.conservativeResize(j + 1);
         pairs.vectors.conservativeResize(Eigen::NoChange, j + 1);
@@ -468,7 +482,7 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   }
   if(opt.cholesky == Sparse_cholesky::cholmod) {
 #ifdef LAPMESH_HAS_CHOLMOD
-    return smallest_eigenpairs_with<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>(
+    return smallest_eigenpairs_with<Cholmod_supernodal_llt>(
       minus_S, mass, k, opt);
 #else
     throw std::invalid_argument("Sparse_cholesky::cholmod requested, but lapmesh was compiled without "
