@@ -19,7 +19,8 @@ struct Smooth_options
   std::string input, output;
   std::string scheme, lambda, lambda_unit = "absolute", laplacian = "cotangent", area = "barycentric";
   long long iterations = 0;
-  bool fixed_operator = false, restore_volume = false, reuse_factorization = false, quiet = false;
+  bool fixed_operator = false, restore_volume = false, restore_area = false, free_boundary = false,
+       reuse_factorization = false, quiet = false;
 };
 
 void run(const Smooth_options& o)
@@ -45,7 +46,8 @@ void run(const Smooth_options& o)
   const auto scheme = *lapmesh::parse_smoothing_scheme(o.scheme);  // CLI11 checked the names
   const auto lap = laplacian_from(o.laplacian);
   const auto area = area_from(o.area);
-  const auto base = lapmesh::parameters::vertex_area(area, lapmesh::parameters::laplacian(lap));
+  const auto base = lapmesh::parameters::fix_boundary(
+    !o.free_boundary, lapmesh::parameters::vertex_area(area, lapmesh::parameters::laplacian(lap)));
 
   const bool tty = isatty(STDERR_FILENO);
   std::function<void(int, int)> progress;
@@ -61,8 +63,9 @@ void run(const Smooth_options& o)
                          : lapmesh::time_step(mesh, lambda_value, *lapmesh::parse_time_step_unit(o.lambda_unit), base);
 
     auto np = lapmesh::parameters::reuse_factorization(o.reuse_factorization, lapmesh::parameters::progress_callback(
-      progress, lapmesh::parameters::restore_volume(
-                  o.restore_volume, lapmesh::parameters::fixed_operator(o.fixed_operator, base))))
+      progress, lapmesh::parameters::restore_area(
+                  o.restore_area, lapmesh::parameters::restore_volume(
+                                    o.restore_volume, lapmesh::parameters::fixed_operator(o.fixed_operator, base)))))
                 .number_of_iterations(unsigned(o.iterations));
     switch(scheme) {
       case lapmesh::Smoothing_scheme::explicit_euler:
@@ -108,7 +111,7 @@ void register_smooth(CLI::App& app)
     "computed by Lanczos and printed); a warning is printed above it.\n"
     "implicit: (M - lambda S) P' = M P (backward Euler, sparse Cholesky). conformal: Kazhdan et al. 2012.\n"
     "The operator is rebuilt from the current positions every iteration unless --fixed-operator.\n"
-    "Boundary vertices stay fixed. --lambda auto: 0.9 x the stability bound (explicit) or one mean edge\n"
+    "Boundary vertices stay fixed unless --free-boundary. --lambda auto: 0.9 x the stability bound (explicit) or one mean edge\n"
     "length squared (implicit, conformal). --lambda-unit edge2: lambda x mean edge length^2 (scale-free;\n"
     "the uniform Laplacian is already dimensionless); bound: lambda x the explicit stability bound.\n");
   add_input_output(*cmd, o->input, o->output, "output mesh (.off, .obj, .ply, .stl)");
@@ -125,6 +128,10 @@ void register_smooth(CLI::App& app)
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the input mesh for all iterations");
   cmd->add_flag("--restore-volume", o->restore_volume,
                 "rescale to the input's enclosed volume and centroid after each step (closed meshes)");
+  cmd->add_flag("--restore-area", o->restore_area,
+                "rescale to the input's surface area and area centroid after each step (no fixed vertex: "
+                "with a boundary, add --free-boundary)");
+  cmd->add_flag("--free-boundary", o->free_boundary, "boundary vertices move with the flow (natural boundary condition)");
   cmd->add_flag("--reuse-factorization", o->reuse_factorization,
                 "implicit: solve by CG preconditioned with the previous Cholesky factor, refactorise only when needed");
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");

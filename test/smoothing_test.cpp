@@ -360,6 +360,89 @@ TEST(Smoothing, VolumeRestorationKeepsVolumeAndCentroid)
   }
 }
 
+// Area-weighted centroid of the faces, written here independently of the engine.
+Eigen::RowVector3d area_centroid(const Mesh& m)
+{
+  Eigen::RowVector3d c = Eigen::RowVector3d::Zero();
+  double total = 0;
+  for(auto f : faces(m)) {
+    const double a = CGAL::Polygon_mesh_processing::face_area(f, m);
+    for(auto v : vertices_around_face(halfedge(f, m), m))
+      c += a / 3.0 * Eigen::RowVector3d(m.point(v).x(), m.point(v).y(), m.point(v).z());
+    total += a;
+  }
+  return c / total;
+}
+
+TEST(Smoothing, FreeBoundaryIsTheNeumannProblemAndAreaRestorationKeepsAreaAndCentroid)
+{
+  const Mesh input = to_mesh(bumpy_patch(12));
+  const int n = int(num_vertices(input));
+  const double lambda = lapmesh::scale_free_time_step(input, 0.2);
+  // The free boundary is the unconstrained system: the dense reference with no fixed vertex.
+  {
+    Eigen::MatrixXd X = positions(input);
+    Mesh state = input;
+    for(int k = 0; k < 3; ++k) {
+      const auto pencil = lapmesh::laplacian_pencil(state);
+      X = dense_implicit_step(Eigen::MatrixXd(pencil.stiffness), pencil.mass, X, lambda, std::vector<bool>(n, false));
+      for(auto v : vertices(state)) state.point(v) = Point(X(v.idx(), 0), X(v.idx(), 1), X(v.idx(), 2));
+    }
+    Mesh m = input;
+    lapmesh::smooth_laplacian_implicit(m, lambda, LP::fix_boundary(false).number_of_iterations(3));
+    EXPECT_LE((positions(m) - X).cwiseAbs().maxCoeff(), 1e-12);
+    double boundary_move = 0;
+    for(auto v : vertices(m))
+      if(m.is_border(v)) boundary_move = std::max(boundary_move, (positions(m) - positions(input)).row(v.idx()).norm());
+    EXPECT_GT(boundary_move, 1e-3);
+  }
+  const double A0 = CGAL::Polygon_mesh_processing::area(input);
+  const Eigen::RowVector3d c0 = area_centroid(input);
+  for(lapmesh::Smoothing_scheme scheme : {lapmesh::Smoothing_scheme::explicit_euler, lapmesh::Smoothing_scheme::implicit_euler,
+                                          lapmesh::Smoothing_scheme::conformal}) {
+    Mesh plain = input, restored = input;
+    const double step = scheme == lapmesh::Smoothing_scheme::explicit_euler
+                          ? 0.5 * lapmesh::explicit_stability_bound(input, LP::fix_boundary(false))
+                          : lambda;
+    auto smooth = [&](Mesh& m, bool restore) {
+      // (a few steps: with a free boundary the flow collapses the corner triangles of the square
+      // after about 7 implicit steps, and the rebuilt operator then stops with a clear error)
+      const auto np = LP::restore_area(restore, LP::fix_boundary(false)).number_of_iterations(4);
+      switch(scheme) {
+        case lapmesh::Smoothing_scheme::explicit_euler: lapmesh::smooth_laplacian_explicit(m, step, np); break;
+        case lapmesh::Smoothing_scheme::implicit_euler: lapmesh::smooth_laplacian_implicit(m, step, np); break;
+        default: lapmesh::smooth_conformal_flow(m, step, np);
+      }
+    };
+    smooth(plain, false);
+    smooth(restored, true);
+    const std::string name = lapmesh::to_string(scheme);
+    EXPECT_LT(CGAL::Polygon_mesh_processing::area(plain), (1 - 1e-2) * A0) << name;  // the flow shrinks it
+    EXPECT_NEAR(CGAL::Polygon_mesh_processing::area(restored), A0, 1e-12 * A0) << name;
+    EXPECT_LE((area_centroid(restored) - c0).norm(), 1e-12) << name;
+  }
+}
+
+TEST(Smoothing, ShapeRestorationRefusesWhatItCannotDo)
+{
+  const Mesh patch = to_mesh(bumpy_patch(6));
+  const Mesh sphere = to_mesh(lapmesh::icosphere(2));
+  auto refuses = [](Mesh m, const auto& np, const std::string& expected) {
+    try {
+      lapmesh::smooth_laplacian_implicit(m, 1e-3, np);
+      ADD_FAILURE() << "no exception, expected: " << expected;
+    } catch(const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  refuses(patch, LP::restore_area(true), "fix_boundary(false)");          // the boundary is fixed
+  refuses(patch, LP::restore_volume(true, LP::fix_boundary(false)), "closed mesh");  // no volume
+  refuses(sphere, LP::restore_volume(true, LP::restore_area(true)), "not both");
+  auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), sphere);
+  for(auto v : vertices(sphere)) put(constrained, v, v.idx() == 0);
+  refuses(sphere, LP::restore_area(true).vertex_is_constrained_map(constrained), "constrained");
+}
+
 // CGAL 5.5.1's smooth_shape solves (M/2 - 2t C_0) P' = (M/2) P: its mass is area/6 per face
 // corner (half the barycentric area) and its weights (Edge_cotangent_weight: cot a + cot b
 // inside, a single cot on the border) are twice lapmesh's C, so CGAL's time t is lapmesh's
@@ -427,8 +510,11 @@ TEST(Smoothing, ConformalFlowAgreesWithCgalSmoothShape)
     const double diag = diagonal(input);
     std::cout << "closed, 2 constrained: |ours - CGAL LU| " << max_difference(ours, cgal) / diag << " (/ bbox diagonal)\n";
     EXPECT_LE(max_difference(ours, cgal), 1e-12 * diag);
-    for(auto v : vertices(input))
-      if(get(constrained, v)) EXPECT_TRUE(cgal.point(v) == input.point(v));
+    for(auto v : vertices(input)) {
+      if(get(constrained, v)) {
+        EXPECT_TRUE(cgal.point(v) == input.point(v));
+      }
+    }
   }
 }
 
@@ -565,6 +651,32 @@ TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
       EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
       EXPECT_FALSE(std::filesystem::exists(out)) << args;
     }
+}
+
+TEST(SmoothingCli, RestoreAreaNeedsAFreeBoundary)
+{
+  const std::string in = lapmesh_test::scratch_dir() + "/patch.off";
+  {
+    const lapmesh::Triangle_soup soup = bumpy_patch(6);
+    Mesh m = to_mesh(soup);
+    const auto [P, tris] = lapmesh::io::mesh_arrays(m);
+    lapmesh::io::write_mesh(in, P, tris);
+  }
+  const std::string out = lapmesh_test::scratch_dir() + "/patch_out.off";
+  std::filesystem::remove(out);
+  Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 2 --restore-area");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("--free-boundary"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  r = run_cli("smooth " + in + " -o " + out +
+              " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 2 --restore-area --free-boundary");
+  EXPECT_EQ(r.status, 0) << r.err;
+  Mesh original, got;
+  lapmesh::io::read_triangle_mesh(in, original);
+  lapmesh::io::read_triangle_mesh(out, got);
+  EXPECT_NEAR(CGAL::Polygon_mesh_processing::area(got), CGAL::Polygon_mesh_processing::area(original),
+              1e-12 * CGAL::Polygon_mesh_processing::area(original));
 }
 
 TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)

@@ -36,6 +36,13 @@ LAPMESH_NAMED_PARAMETER(fixed_operator)
 /// bool; default false: after each step, rescale about the centroid to the enclosed volume of
 /// the input and move the volume centroid back (closed meshes without constrained vertices).
 LAPMESH_NAMED_PARAMETER(restore_volume)
+/// bool; default false: after each step, rescale about the area centroid to the surface area of
+/// the input and move that centroid back (any mesh without fixed vertices: on a mesh with
+/// boundary, together with fix_boundary(false)).
+LAPMESH_NAMED_PARAMETER(restore_area)
+/// bool; default true: boundary vertices stay fixed (Dirichlet). false: they move with the flow
+/// (natural Neumann condition, as the spectral solver treats boundaries).
+LAPMESH_NAMED_PARAMETER(fix_boundary)
 /// std::function<void(int done, int total)>, called after each iteration.
 LAPMESH_NAMED_PARAMETER(progress_callback)
 /// bool; default false: for the explicit scheme, always compute the Lanczos estimate of the
@@ -79,6 +86,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.iterations = int(choose_parameter(get_parameter(np, CGAL::internal_np::number_of_iterations), 1));
   s.fixed_operator = choose_parameter(get_parameter(np, internal_np::fixed_operator), false);
   s.restore_volume = choose_parameter(get_parameter(np, internal_np::restore_volume), false);
+  s.restore_area = choose_parameter(get_parameter(np, internal_np::restore_area), false);
+  s.fix_boundary = choose_parameter(get_parameter(np, internal_np::fix_boundary), true);
   s.parallel = is_parallel<ConcurrencyTag>();
   s.compute_stability_bound = choose_parameter(get_parameter(np, internal_np::compute_stability_bound), false);
   s.use_cholmod = choose_parameter(get_parameter(np, internal_np::use_cholmod), true);
@@ -158,7 +167,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 ///   - `CGAL::parameters::vertex_point_map`, `vertex_index_map`
 ///   - `lapmesh::parameters::laplacian` (default cotangent), `vertex_area` (default barycentric)
 ///   - `lapmesh::parameters::fixed_operator` (default false), `restore_volume` (default false),
-///     `progress_callback`
+///     `restore_area` (default false), `fix_boundary` (default true), `progress_callback`
 ///   - `CGAL::parameters::sparse_linear_solver` (implicit and conformal schemes: a model of CGAL's
 ///     `SparseLinearAlgebraWithFactorTraits_d`, e.g. `CGAL::Eigen_solver_traits<Eigen::SimplicialLDLT<...>>`,
 ///     factorised once per system, or of `SparseLinearAlgebraTraits_d`, e.g. the iterative
@@ -175,9 +184,10 @@ Smoothing_report smooth_laplacian_explicit(TriangleMesh& tm, double lambda,
 
 /// @brief smooths `tm` by implicit (backward Euler) Laplacian flow, (M - lambda S) P' = M P.
 ///
-/// The SPD free block is factorised by a sparse LDL^T (Eigen::SimplicialLDLT, AMD ordering);
-/// the symbolic analysis is done once, and the matrix is refactorised only when it changes
-/// (each iteration for the rebuilt cotangent operator; once for `uniform` or `fixed_operator`).
+/// The SPD free block is factorised by a sparse Cholesky (CHOLMOD's supernodal LL^T when compiled
+/// in, else Eigen::SimplicialLDLT); the symbolic analysis is done once, and the matrix is
+/// refactorised only when it changes (each iteration for the rebuilt cotangent operator; once
+/// for `uniform` or `fixed_operator`).
 /// Named parameters as for smooth_laplacian_explicit().
 /// @throws Numerical_error when a factorisation or solve fails.
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
@@ -201,7 +211,8 @@ Smoothing_report smooth_conformal_flow(TriangleMesh& tm, double lambda,
 
 /// @brief returns the explicit scheme's stability bound 2 / mu_max for the operator of `tm`
 /// (free vertices only: boundary and `vertex_is_constrained_map`). Named parameters:
-/// `laplacian`, `vertex_area`, `vertex_point_map`, `vertex_index_map`, `vertex_is_constrained_map`.
+/// `laplacian`, `vertex_area`, `vertex_point_map`, `vertex_index_map`, `vertex_is_constrained_map`,
+/// `fix_boundary`.
 template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
 double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
 {
@@ -212,7 +223,9 @@ double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& n
   internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil);
   if(lap == Laplacian::cotangent) internal::require_positive_mass(pencil.mass, area);
   std::vector<char> free_mask(mesh.vertices.size());
-  for(std::size_t i = 0; i < free_mask.size(); ++i) free_mask[i] = !mesh.topology.on_boundary[i];
+  const bool fix_boundary =
+    CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::fix_boundary), true);
+  for(std::size_t i = 0; i < free_mask.size(); ++i) free_mask[i] = !(fix_boundary && mesh.topology.on_boundary[i]);
   if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
     auto vcm = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_is_constrained);
     for(std::size_t i = 0; i < free_mask.size(); ++i)
