@@ -54,7 +54,9 @@ LAPMESH_NAMED_PARAMETER(compute_stability_bound)
 LAPMESH_NAMED_PARAMETER(use_cholmod)
 /// bool; default false: with the rebuilt operator, solve each step by conjugate gradients
 /// preconditioned by the previous Cholesky factor (to a relative residual of 1e-12) and
-/// refactorise only when CG needs more than 10 iterations.
+/// refactorise only when CG needs more than 10 iterations (after the first such step, every
+/// remaining step is refactorised directly). It pays where the factorisation is expensive
+/// relative to a solve (regular grids: 1.2x on a 250k torus); on Loop-subdivided scans it does not.
 LAPMESH_NAMED_PARAMETER(reuse_factorization)
 
 namespace internal {

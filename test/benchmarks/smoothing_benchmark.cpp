@@ -1,9 +1,13 @@
 // Smoothing benchmarks: 10 implicit iterations with re-assembly (100k, 250k, 1M vertices)
 // and 10 explicit iterations (operator built once, as in ANCHORS.md, and rebuilt) on 1M,
-// single- and multi-threaded. Meshes: generated tori (closed, genus 1) scaled to unit area.
+// single- and multi-threaded. Meshes: generated tori (closed, genus 1) and Loop-subdivided scans
+// from CGAL's data set, scaled to unit area (test_arrays).
 // Counters split the time into assembly, symbolic analysis, numeric factorisation and solves.
 //
 //   smoothing_benchmark --benchmark_filter=Implicit/250
+#include "test_helpers.h"
+
+#include <lapmesh/io.h>
 #include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/shapes.h>
 
@@ -11,6 +15,7 @@
 #include <CGAL/Polygon_mesh_processing/smooth_shape.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/subdivision_method_3.h>
 
 #include <benchmark/benchmark.h>
 
@@ -26,14 +31,33 @@ struct Arrays
   lapmesh::internal::Positions positions;
 };
 
-// nu x nv torus with ~square cells (nu / nv = R / r = 2.5), scaled to unit area.
-const Arrays& torus_arrays(int thousands)
+// Test meshes, scaled to unit area. id >= 100: an nu x nv torus of id thousand vertices with
+// ~square cells (nu / nv = R / r = 2.5): a regular grid, the hard case for AMD ordering.
+// id 1-3: scans from CGAL's data set, Loop-subdivided, closer to the subdivided armadillo of
+// ANCHORS.md: 1 armadillo + 1 Loop step (104k vertices), 2 refined_elephant + 1 step (178k),
+// 3 armadillo + 2 steps (416k). (man + 2 steps, 280k, is not used: its thin fingers collapse
+// into zero-area faces within 10 steps of one mean edge length squared.)
+const Arrays& test_arrays(int id)
 {
   static std::map<int, Arrays> cache;
-  auto it = cache.find(thousands);
+  auto it = cache.find(id);
   if(it != cache.end()) return it->second;
-  const int nv = int(std::lround(std::sqrt(thousands * 1000.0 / 2.5))), nu = int(std::lround(thousands * 1000.0 / nv));
-  const lapmesh::Triangle_soup soup = lapmesh::torus(nu, nv, 1.0, 0.4);
+  lapmesh::Triangle_soup soup;
+  if(id >= 100) {
+    const int nv = int(std::lround(std::sqrt(id * 1000.0 / 2.5))), nu = int(std::lround(id * 1000.0 / nv));
+    soup = lapmesh::torus(nu, nv, 1.0, 0.4);
+  } else {
+    Mesh m;
+    lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(id == 2 ? "refined_elephant.off" : "armadillo.off"), m);
+    CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(id == 3 ? 2 : 1));
+    for(auto v : vertices(m)) soup.points.push_back({m.point(v).x(), m.point(v).y(), m.point(v).z()});
+    for(auto f : faces(m)) {
+      std::array<int, 3> t;
+      int k = 0;
+      for(auto v : vertices_around_face(halfedge(f, m), m)) t[std::size_t(k++)] = int(v.idx());
+      soup.triangles.push_back(t);
+    }
+  }
   Arrays a;
   std::vector<lapmesh::internal::Index> tris;
   for(const auto& t : soup.triangles) tris.insert(tris.end(), t.begin(), t.end());
@@ -41,14 +65,16 @@ const Arrays& torus_arrays(int thousands)
   a.positions.resize(Eigen::Index(soup.points.size()), 3);
   for(std::size_t i = 0; i < soup.points.size(); ++i)
     a.positions.row(Eigen::Index(i)) << soup.points[i][0], soup.points[i][1], soup.points[i][2];
-  const double area = 4 * M_PI * M_PI * 1.0 * 0.4;
-  a.positions /= std::sqrt(area);
-  return cache.emplace(thousands, std::move(a)).first->second;
+  lapmesh::Laplacian_pencil pencil;
+  lapmesh::internal::assemble_pencil(a.topology, a.positions, lapmesh::Laplacian::cotangent,
+                                     lapmesh::Vertex_area::barycentric, false, pencil);
+  a.positions /= std::sqrt(pencil.mass.sum());
+  return cache.emplace(id, std::move(a)).first->second;
 }
 
 void run(benchmark::State& state, lapmesh::Smoothing_scheme scheme, bool fixed_operator, bool reuse = false)
 {
-  const Arrays& a = torus_arrays(int(state.range(0)));
+  const Arrays& a = test_arrays(int(state.range(0)));
   const bool parallel = state.range(1) != 0;
   lapmesh::internal::Smoothing_settings s;
   s.scheme = scheme;
@@ -94,7 +120,7 @@ void BM_ExplicitRebuilt(benchmark::State& state) { run(state, lapmesh::Smoothing
 // It is given lapmesh's assembly (faster than their triplet builds), so the ratio is conservative.
 void BM_ImplicitPublicStyle(benchmark::State& state)
 {
-  const Arrays& a = torus_arrays(int(state.range(0)));
+  const Arrays& a = test_arrays(int(state.range(0)));
   const double h = lapmesh::internal::mean_edge_length(a.topology, a.positions);
   const double lambda = 1.0 * h * h;
   for(auto _ : state) {
@@ -167,9 +193,9 @@ void BM_ConformalVsSmoothShape(benchmark::State& state)
 } // namespace
 
 BENCHMARK(BM_ConformalVsSmoothShape)->ArgsProduct({{43, 100}, {0, 1, 2, 3}})->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK(BM_Implicit)->ArgsProduct({{100, 250, 1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
-BENCHMARK(BM_ImplicitReuse)->ArgsProduct({{100, 250, 1000}, {0}})->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK(BM_ImplicitPublicStyle)->Arg(100)->Arg(250)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_Implicit)->ArgsProduct({{1, 2, 3, 100, 250, 1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
+BENCHMARK(BM_ImplicitReuse)->ArgsProduct({{1, 2, 3, 100, 250, 1000}, {0}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_ImplicitPublicStyle)->Arg(1)->Arg(2)->Arg(3)->Arg(100)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ImplicitSurfaceMesh)->Arg(250)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ExplicitFixedOperator)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(BM_ExplicitRebuilt)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
