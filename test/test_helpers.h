@@ -1,4 +1,5 @@
-// Shared fixtures of the test suite: mesh types and analytic meshes.
+// Shared fixtures of the test suite and the benchmarks: mesh types and analytic meshes; for the
+// tests (LAPMESH_TEST_TMP defined) also per-test scratch directories.
 #ifndef LAPMESH_TEST_HELPERS_H
 #define LAPMESH_TEST_HELPERS_H
 
@@ -10,7 +11,9 @@
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/graph_traits_Polyhedron_3.h>
 
+#ifdef LAPMESH_TEST_TMP  // the test suite (the benchmarks share the meshes, not GoogleTest)
 #include <gtest/gtest.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
