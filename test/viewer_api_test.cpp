@@ -12,6 +12,7 @@
 #include <lapmesh/shapes.h>
 #include <lapmesh/spectral_reconstruction.h>
 
+#include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -325,6 +326,22 @@ TEST_F(ViewerApi, SmoothingMovesVerticesAsTheLibraryAndResetRestores)
   EXPECT_TRUE(w.contains("warning"));
   post("/api/meshes/cow/smooth", {{"scheme", "conformal"}, {"lambda", 0.5}, {"lambda_unit", "edge2"}, {"iterations", 1}, {"area", "mixed"}});
 
+  // Area restoration: the smoothed cow keeps the surface area of the input.
+  post("/api/meshes/cow/reset", json::object());
+  const json a = post("/api/meshes/cow/smooth", {{"scheme", "implicit"}, {"lambda", 2.0}, {"lambda_unit", "edge2"},
+                                                 {"iterations", 3}, {"restore_area", true}});
+  EXPECT_EQ(a["restore_area"], true);
+  Mesh restored = load(cow_path);
+  const double area0 = CGAL::Polygon_mesh_processing::area(restored);
+  const auto P_area = positions("cow");
+  for(auto v : vertices(restored))
+    restored.point(v) = lapmesh_test::Point(P_area[3 * v.idx()], P_area[3 * v.idx() + 1], P_area[3 * v.idx() + 2]);
+  EXPECT_NEAR(CGAL::Polygon_mesh_processing::area(restored), area0, 1e-12 * area0);
+  EXPECT_NE(P_area, before);
+  expect_refused(client().Post("/api/meshes/cow/smooth", json{{"restore_area", true}, {"restore_volume", true}}.dump(),
+                               "application/json"),
+                 400, "not both");
+
   post("/api/meshes/cow/reset", json::object());
   EXPECT_EQ(positions("cow"), before);
 
@@ -332,7 +349,8 @@ TEST_F(ViewerApi, SmoothingMovesVerticesAsTheLibraryAndResetRestores)
   for(const json& bad : {json{{"iterations", 0}}, json{{"iterations", 10001}}, json{{"iterations", 2.5}},
                          json{{"lambda", -1}}, json{{"lambda", 0}}, json{{"lambda", "fast"}}, json{{"lambda", 1e13}},
                          json{{"scheme", "magic"}}, json{{"laplacian", "fancy"}}, json{{"area", 3}},
-                         json{{"fixed_operator", "yes"}}, json{{"lambda_unit", "furlong"}}, json{{"lamda", 1}}})
+                         json{{"fixed_operator", "yes"}}, json{{"lambda_unit", "furlong"}}, json{{"lamda", 1}},
+                         json{{"restore_area", 1}}, json{{"fix_boundary", "no"}}})
     expect_refused(client().Post("/api/meshes/cow/smooth", bad.dump(), "application/json"), 400);
   EXPECT_EQ(positions("cow"), before);
 }

@@ -541,18 +541,23 @@ struct Server::Impl
     const std::string area = p.choice("area", "barycentric", {"barycentric", "voronoi", "mixed"});
     const bool fixed_operator = p.boolean("fixed_operator", false);
     const bool restore_volume = p.boolean("restore_volume", false);
+    const bool restore_area = p.boolean("restore_area", false);
+    const bool fix_boundary = p.boolean("fix_boundary", true);
     p.finish();
 
     const auto sch = *lapmesh::parse_smoothing_scheme(scheme);  // p.choice checked the name
-    const auto base = LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap)));
+    const auto base = LP::fix_boundary(
+      fix_boundary, LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap))));
     s.set_stage("time step");
     const double lambda = lambda_auto ? lapmesh::automatic_time_step(s.current, sch, base)
                                       : lapmesh::time_step(s.current, lambda_value, *lapmesh::parse_time_step_unit(unit), base);
     s.total = iterations;
     s.set_stage("smoothing");
     Mesh work = s.current;  // a cancelled or failed run leaves the mesh as it was
-    const auto np = LP::progress_callback(smoothing_progress(s), LP::restore_volume(restore_volume, LP::fixed_operator(fixed_operator, base)))
-                      .number_of_iterations(unsigned(iterations));
+    const auto np =
+      LP::progress_callback(smoothing_progress(s), LP::restore_area(restore_area, LP::restore_volume(
+                                                                                 restore_volume, LP::fixed_operator(fixed_operator, base))))
+        .number_of_iterations(unsigned(iterations));
     lapmesh::Smoothing_report report;
     switch(sch) {
       case lapmesh::Smoothing_scheme::explicit_euler:
@@ -566,7 +571,8 @@ struct Server::Impl
     s.current = std::move(work);
     json out = {{"scheme", scheme}, {"lambda", lambda}, {"iterations", report.iterations},
                 {"free_vertices", report.free_vertices}, {"laplacian", lap}, {"area", area},
-                {"fixed_operator", fixed_operator}};
+                {"fixed_operator", fixed_operator}, {"restore_volume", restore_volume}, {"restore_area", restore_area},
+                {"fix_boundary", fix_boundary}};
     if(sch == lapmesh::Smoothing_scheme::explicit_euler) out["stability_bound"] = report.stability_bound;
     if(report.above_stability_bound)
       out["warning"] = "lambda " + Params::fmt(lambda) + " exceeds the explicit stability bound " +

@@ -271,7 +271,17 @@ async function main() {
       await press('run-smooth');
       assert.equal(await errorText(), '', scheme);
     }
+    await page.check('#sm-restore-area');
+    await press('run-smooth');
+    assert.match(await errorText(), /not both/);
     await page.uncheck('#sm-restore');
+    await page.check('#sm-free-boundary');
+    await press('reset');
+    await page.selectOption('#sm-scheme', 'implicit');
+    await press('run-smooth');
+    assert.equal(await errorText(), '', 'restore area, free boundary');
+    await page.uncheck('#sm-restore-area');
+    await page.uncheck('#sm-free-boundary');
     await page.fill('#sm-lambda', '-1');
     await press('run-smooth');
     assert.match(await errorText(), /lambda/);

@@ -300,6 +300,7 @@ const operations = {
       scheme: $('sm-scheme').value, lambda: lam === 'auto' ? 'auto' : numOrText(lam), lambda_unit: $('sm-unit').value,
       iterations: intOrText($('sm-iterations').value), laplacian: $('sm-laplacian').value, area: $('sm-area').value,
       fixed_operator: $('sm-fixed').checked, restore_volume: $('sm-restore').checked,
+      restore_area: $('sm-restore-area').checked, fix_boundary: !$('sm-free-boundary').checked,
     };
   },
   noise: () => ({ level: numOrText($('noise-level').value), seed: intOrText($('noise-seed').value),
@@ -387,7 +388,8 @@ function applyUrlFields() {
     if (!urlParams.has(key)) continue;
     for (const id of ids) $(id).value = urlParams.get(key);
   }
-  for (const [key, id] of [['fixed_operator', 'sm-fixed'], ['restore_volume', 'sm-restore'], ['wireframe', 'wireframe']])
+  for (const [key, id] of [['fixed_operator', 'sm-fixed'], ['restore_volume', 'sm-restore'], ['restore_area', 'sm-restore-area'],
+    ['free_boundary', 'sm-free-boundary'], ['wireframe', 'wireframe']])
     if (urlParams.has(key)) $(id).checked = urlParams.get(key) === '1' || urlParams.get(key) === 'true';
   if (urlParams.get('ui') === '0') document.body.classList.add('no-ui');
   surfaceMaterial.flatShading = $('shading').value === 'flat';
