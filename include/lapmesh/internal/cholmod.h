@@ -8,8 +8,10 @@
 // numeric factorisation of a 280k-vertex Laplacian takes 0.60-0.74 s with them and 0.28-0.33 s
 // without (measured, same build). The wrapper makes CHOLMOD's OpenMP regions inactive for the
 // duration of each call (max-active-levels 0), then restores the caller's setting; BLAS threads
-// are left alone. The OpenMP entry points are weak references: they resolve to the runtime that
-// CHOLMOD itself loads, and the guard does nothing when CHOLMOD was built without OpenMP.
+// are left alone. The OpenMP entry points are looked up at run time (dlsym) in the runtime that
+// CHOLMOD itself loads, so lapmesh neither links an OpenMP runtime nor redeclares its functions
+// (a weak redeclaration would turn a user's own calls into weak references); the guard does
+// nothing when no OpenMP runtime is loaded.
 #ifndef LAPMESH_INTERNAL_CHOLMOD_H
 #define LAPMESH_INTERNAL_CHOLMOD_H
 
@@ -18,10 +20,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
-extern "C" {
-int omp_get_max_active_levels(void) __attribute__((weak));
-void omp_set_max_active_levels(int) __attribute__((weak));
-}
+#include <dlfcn.h>
 
 namespace lapmesh {
 namespace internal {
@@ -34,19 +33,35 @@ class Serial_openmp_scope
 public:
   Serial_openmp_scope()
   {
-    if(omp_get_max_active_levels && omp_set_max_active_levels) {
-      m_saved = omp_get_max_active_levels();
-      omp_set_max_active_levels(0);
+    const Entry_points& omp = entry_points();
+    if(omp.get && omp.set) {
+      m_saved = omp.get();
+      omp.set(0);
     }
   }
   ~Serial_openmp_scope()
   {
-    if(m_saved >= 0) omp_set_max_active_levels(m_saved);
+    if(m_saved >= 0) entry_points().set(m_saved);
   }
   Serial_openmp_scope(const Serial_openmp_scope&) = delete;
   Serial_openmp_scope& operator=(const Serial_openmp_scope&) = delete;
 
 private:
+  struct Entry_points
+  {
+    int (*get)() = nullptr;
+    void (*set)(int) = nullptr;
+  };
+  static const Entry_points& entry_points()
+  {
+    static const Entry_points omp = [] {
+      Entry_points e;
+      e.get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"));
+      e.set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
+      return e;
+    }();
+    return omp;
+  }
   int m_saved = -1;
 };
 
