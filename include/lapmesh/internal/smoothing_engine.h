@@ -6,9 +6,9 @@
 // stepped or solved, the fixed positions are never written, so they stay bitwise equal.
 //
 // Implicit steps solve (M - lambda S)_FF P'_F = M_FF P_F + lambda S_FB P_B with a sparse
-// LDL^T factorisation of the free block (lower triangle only). Its pattern is built once
-// from the topology pattern (an index map slot-of-S -> slot-of-A), the symbolic analysis
-// (AMD ordering + elimination tree) is computed once, and each iteration only refactorises
+// Cholesky factorisation of the free block (lower triangle only; Spd_direct_solver). Its pattern
+// is built once from the topology pattern (an index map slot-of-S -> slot-of-A), the symbolic
+// analysis (ordering + elimination tree) is computed once, and each iteration only refactorises
 // numerically; the three coordinates are solved against one factorisation. When the matrix
 // cannot change (uniform Laplacian, or a fixed operator) it is factorised once.
 #ifndef LAPMESH_INTERNAL_SMOOTHING_ENGINE_H
