@@ -64,7 +64,10 @@ inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eig
             ldb = int(std::max<Eigen::Index>(1, B.outerStride())), ldc = int(std::max<Eigen::Index>(1, C.outerStride()));
   dgemm_(transpose_a ? "T" : "N", "N", &im, &in, &ik, &alpha, A.data(), &lda, B.data(), &ldb, &beta, C.data(), &ldc, 1, 1);
 #else
-  if(beta != 1.0) C *= beta;
+  if(beta == 0.0)
+    C.setZero();  // as in BLAS: C's old content is not read (it may be uninitialised, even NaN)
+  else if(beta != 1.0)
+    C *= beta;
   if(k == 0) return;
   const Eigen::Index tall = A.rows();
   const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, A.cols()));

@@ -15,12 +15,13 @@
 #define LAPMESH_INTERNAL_SMOOTHING_ENGINE_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/cholmod.h>
 #include <lapmesh/laplacian.h>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
-#include <lapmesh/internal/cholmod.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -166,14 +167,20 @@ inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& penc
   return estimate;
 }
 
+/// The three corner positions of face f.
+inline std::array<Eigen::Vector3d, 3> face_points(const Mesh_topology& t, const Positions& P, Index f)
+{
+  return {P.row(t.triangles[3 * f]).transpose(), P.row(t.triangles[3 * f + 1]).transpose(),
+          P.row(t.triangles[3 * f + 2]).transpose()};
+}
+
 /// Signed enclosed volume (divergence theorem) and volume centroid of a closed mesh.
 inline void volume_and_centroid(const Mesh_topology& t, const Positions& P, double& volume, Eigen::Vector3d& centroid)
 {
   double V = 0;
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for(Index f = 0; f < t.num_faces; ++f) {
-    const Eigen::Vector3d a = P.row(t.triangles[3 * f]), b = P.row(t.triangles[3 * f + 1]),
-                          d = P.row(t.triangles[3 * f + 2]);
+    const auto [a, b, d] = face_points(t, P, f);
     const double v6 = a.dot(b.cross(d));  // 6 x volume of the tetrahedron (0, a, b, d)
     V += v6;
     c += v6 * (a + b + d);
@@ -188,8 +195,7 @@ inline void area_and_centroid(const Mesh_topology& t, const Positions& P, double
   double A = 0;
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for(Index f = 0; f < t.num_faces; ++f) {
-    const Eigen::Vector3d a = P.row(t.triangles[3 * f]), b = P.row(t.triangles[3 * f + 1]),
-                          d = P.row(t.triangles[3 * f + 2]);
+    const auto [a, b, d] = face_points(t, P, f);
     const double af = 0.5 * (b - a).cross(d - a).norm();
     A += af;
     c += af * (a + b + d) / 3.0;

@@ -144,7 +144,7 @@ private:
 
 /// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
 /// permutation: the completeness check factorises a matrix of the same pattern with it, which
-/// spares a second ordering (about a quarter of the check's time at 280k vertices).
+/// spares a second AMD ordering (Eigen's analysis with AMD took 0.30-0.36 s at 280k vertices).
 using Fill_permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
 inline Fill_permutation fill_permutation(const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>& f)
 {
