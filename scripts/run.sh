@@ -4,7 +4,10 @@
 #   scripts/run.sh test    install dependencies, build, run the whole test suite (ctest)
 #   scripts/run.sh setup   install dependencies only (idempotent)
 #   scripts/run.sh build   install dependencies and build
-# Environment: BUILD_DIR (default build), JOBS (default nproc).
+#   scripts/run.sh sanitize  AddressSanitizer + UndefinedBehaviorSanitizer build of the CLI and
+#                          the unit tests that exercise readers, operators and the CLI, run with
+#                          ctest; then each reader's fuzzer for FUZZ_SECONDS (default 60)
+# Environment: BUILD_DIR (default build), SANITIZE_DIR (default build-sanitize), JOBS (default nproc).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
@@ -16,9 +19,13 @@ PACKAGES=(build-essential cmake ccache pkg-config doxygen
           libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
           libcpp-httplib-dev nlohmann-json3-dev chromium)
 
+# The fuzzers need clang's libFuzzer: installed by `sanitize` only, to keep `demo` quick.
+FUZZ_PACKAGES=(clang libclang-rt-14-dev)
+
+# setup [EXTRA_PACKAGE...]: installs what is missing of PACKAGES and the extra ones.
 setup() {
   local missing=()
-  for p in "${PACKAGES[@]}"; do
+  for p in "${PACKAGES[@]}" "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   # The viewer page is built with npm (node >= 20): take Debian's only when there is none
@@ -38,6 +45,22 @@ build() {
   cmake --build "$BUILD_DIR" -j "$JOBS"
 }
 
+# The sanitizer build keeps to the translation units that read files and run the CLI: CGAL is
+# heavy to compile, and ASan + UBSan builds of all of it would not fit CI's time.
+SANITIZE_TARGETS=(lapmesh_cli io_test cli_test operators_test curvature_test)
+sanitize() {
+  setup "${FUZZ_PACKAGES[@]}"
+  local dir="${SANITIZE_DIR:-$ROOT/build-sanitize}"
+  cmake -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O1 -g1 -DNDEBUG" \
+        -DLAPMESH_SANITIZE=ON -DLAPMESH_BUILD_EXAMPLES=OFF -DLAPMESH_BUILD_BENCHMARKS=OFF >/dev/null
+  cmake --build "$dir" -j "$JOBS" --target "${SANITIZE_TARGETS[@]}"
+  # Tests of executables left out of this build are registered as *_NOT_BUILT: skip them by name.
+  ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1" UBSAN_OPTIONS="print_stacktrace=1" \
+    ctest --test-dir "$dir" --output-on-failure -j "$JOBS" \
+          -E 'NOT_BUILT|install_and_find_package|doc_builds|viewer_e2e'
+  bash "$ROOT/scripts/fuzz.sh" "${FUZZ_SECONDS:-60}"
+}
+
 case "${1:-demo}" in
   setup) setup ;;
   build) build ;;
@@ -53,5 +76,6 @@ case "${1:-demo}" in
     build
     ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
     ;;
-  *) echo "usage: scripts/run.sh demo|test|setup|build" >&2; exit 2 ;;
+  sanitize) sanitize ;;
+  *) echo "usage: scripts/run.sh demo|test|setup|build|sanitize" >&2; exit 2 ;;
 esac
