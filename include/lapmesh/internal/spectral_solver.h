@@ -88,8 +88,9 @@ struct Spectral_options
   Krylov_method method = Krylov_method::block_lanczos;
   int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 60 pairs, else 8
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
-  int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs (see
-                                   ///< banded_eigenpairs, Spectra inside); 0: one run; -1: 40 when k >= 200
+  int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
+                                   ///< by the solver past wider clusters (see banded_eigenpairs,
+                                   ///< Spectra inside); 0: one run; -1: 40 when k >= 200
   double ncv_factor = 2.0;         ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
                                    ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos)
   std::function<void(const Spectral_progress&)> progress;  ///< optional
@@ -291,20 +292,34 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
 
 
 /// Spectrum slicing ("bands", as in Vallet & Levy's manifold harmonics): shift-invert Lanczos
-/// around successive shifts sigma_0 < sigma_1 < ..., each for band_size pairs, so that the
+/// around successive shifts sigma_0 < sigma_1 < ..., each for about band_size pairs, so that the
 /// Krylov space stays small (Spectra's dense work grows with the square of its size). Each
 /// shift's LDL^T factorisation (one symbolic analysis for all) also gives, by Sylvester's law,
 /// the exact number of eigenvalues below it: every band is checked against it, so a dropped
 /// or duplicated pair is detected, never returned.
+///
+/// Symmetric meshes have clustered spectra (a sphere: groups of 2l+1 nearly or exactly equal
+/// values, separated by wide gaps), so neither a fixed window nor a shift placed by the mean
+/// density can be trusted: a group may be wider than the window, or the window may be filled
+/// by the group just accepted. Each band therefore adapts until it holds a complete, verified
+/// slice above the accepted range: the inertia at the shift bounds how far the shift may lie
+/// above it, a window that does not reach back to the accepted range pulls the shift down, and
+/// a window whose new values hold no gap before its edge (a cluster wider than the window), or
+/// that fails the inertia count (a missed copy of a repeated value), is widened.
 inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   const Eigen::Index n = mass.size();
+  if(k > n - 2)
+    throw Numerical_error("spectral solver: k = " + std::to_string(k) + " needs the dense solver, which is limited to " +
+                          std::to_string(opt.dense_limit) + " vertices");
   using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
   const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
-  const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), n - 2);
+  const Eigen::Index max_window = n - 2;  // Spectra needs nev < n
+  const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), max_window);
+  constexpr int max_attempts = 12;        // per band; a widening multiplies the window by 1.5
   Ldlt ldlt;
   bool analysed = false;
   auto factor_at = [&](double sigma) -> Eigen::Index {
@@ -325,65 +340,87 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
       opt.progress(Spectral_progress{"lanczos band", ops_total + ops, band + 1,
                                      std::chrono::duration<double>(clock::now() - t0).count()});
   };
+  auto relative_gap = [](double a, double b) { return (b - a) / std::max(std::abs(b), 1e-300); };
 
   std::vector<double> values;
   std::vector<Eigen::VectorXd> vectors;
   double u = 0;          // every eigenvalue below u is in `values` (verified by inertia)
-  double density = 0;    // eigenvalues per unit of lambda in the last band (Weyl: about constant)
+  double density = 0;    // eigenvalues per unit of lambda in the last band
   double sigma = -opt.shift_factor / mass.sum();
-  Eigen::Index nev = B;
-  for(int retries = 0; Eigen::Index(values.size()) < k; ++band) {
-    // B pairs nearest sigma span about B / density: put the lower end a little below u.
-    if(band > 0) sigma = u + 0.4 * double(B) / density;
+  Eigen::Index window = B;
+  int attempt = 0;
+  auto retry = [&](bool widen, const std::string& why) {
+    if(++attempt >= max_attempts || (widen && window >= max_window))
+      throw Numerical_error("spectral solver: band " + std::to_string(band) + " could not be completed in " +
+                            std::to_string(attempt) + " attempts (window of " + std::to_string(window) +
+                            " pairs; last: " + why + ")");
+    if(widen) window = std::min<Eigen::Index>(max_window, window + window / 2);
+  };
+  while(Eigen::Index(values.size()) < k) {
+    const Eigen::Index accepted = Eigen::Index(values.size());
+    // The window of the pairs nearest sigma reaches back below u only if [u, 2 sigma - u]
+    // holds fewer than it does: count them exactly by inertia (a factorisation costs far less
+    // than a Lanczos run) and move the shift halfway down to u until they fit, with a margin.
+    if(band > 0 && attempt == 0) sigma = u + 0.4 * double(window) / density;
+    for(int i = 0; band > 0 && i < 64 && factor_at(2 * sigma - u) - accepted > window - window / 8; ++i)
+      sigma = u + 0.5 * (sigma - u);
     factor_at(sigma);
-    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, std::min<Eigen::Index>(nev, n - 2), opt, on_op);
+    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, window, opt, on_op);
     ops_total += F.operations;
     const Eigen::Index m = F.values.size();
+#ifdef LAPMESH_DEBUG_BANDS
+    std::fprintf(stderr, "band %d attempt %d window %ld sigma %.9g u %.9g found [%.9g, %.9g]\n", band, attempt,
+                 long(window), sigma, u, F.values[0], F.values[m - 1]);
+#endif
     if(band > 0 && F.values[0] > u) {  // no overlap with the accepted range: move the shift down
-      if(++retries > 6) throw Numerical_error("spectral solver: bands do not overlap");
-      density *= 1.5;
-      --band;
+      retry(false, "the window does not reach the accepted range");
+      sigma = u + 0.5 * (sigma - u);
       continue;
     }
-    // Krylov misses happen at the edge of the window: keep the values nearest to the shift,
-    // dropping the top eighth of the band, and cut at a gap.
-    Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
-    while(top > 0 && F.values[top] - F.values[top - 1] <= 1e-6 * std::abs(F.values[top])) --top;
-    if(top == 0 || (band > 0 && F.values[top - 1] < u))
-      throw Numerical_error("spectral solver: a band holds a single repeated eigenvalue; raise band_size");
-    const double cut = 0.5 * (F.values[top - 1] + F.values[top]);
-    Eigen::Index added = 0;
-    for(Eigen::Index j = 0; j < top; ++j)
-      if(band == 0 || F.values[j] >= u) ++added;
-    // Sylvester: exactly values.size() + added eigenvalues below the cut, or the band missed one.
+    // Krylov misses happen at the edge of the window: drop the top eighth. Cut at the widest
+    // relative gap in the upper half of the new values that remain (wide gaps keep vectors of
+    // neighbouring bands orthogonal), else at any gap above u.
+    const Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
+    Eigen::Index first_new = 0;
+    while(first_new < m && band > 0 && F.values[first_new] < u) ++first_new;
+    Eigen::Index cut_at = -1;  // the cut lies between F.values[cut_at - 1] and F.values[cut_at]
+    for(Eigen::Index from : {first_new + 1 + (top - first_new) / 2, first_new + 1}) {
+      double widest = 1e-6;
+      for(Eigen::Index j = std::max<Eigen::Index>(from, 1); j <= top; ++j)
+        if(relative_gap(F.values[j - 1], F.values[j]) > widest) {
+          widest = relative_gap(F.values[j - 1], F.values[j]);
+          cut_at = j;
+        }
+      if(cut_at >= 0) break;
+    }
+    if(cut_at < 0) {  // the new values up to the edge are one cluster: widen past it
+      retry(true, "no spectral gap above " + std::to_string(u) + " inside the window");
+      continue;
+    }
+    const double cut = 0.5 * (F.values[cut_at - 1] + F.values[cut_at]);
+    const Eigen::Index added = cut_at - first_new;
+    // Sylvester: exactly accepted + added eigenvalues below the cut, or the band missed one.
     const Eigen::Index below = factor_at(cut);
 #ifdef LAPMESH_DEBUG_BANDS
-    std::fprintf(stderr, "band %d sigma %g u %g cut %g below %ld expected %ld\n", band, sigma, u, cut, long(below),
-                 long(values.size() + added));
+    std::fprintf(stderr, "band %d cut %.9g below %ld expected %ld\n", band, cut, long(below), long(accepted + added));
 #endif
-    if(below != Eigen::Index(values.size()) + added) {
-      if(++retries > 3)
-        throw Numerical_error("spectral solver: band " + std::to_string(band) + " is incomplete (" +
-                              std::to_string(below) + " eigenvalues below " + std::to_string(cut) + ", " +
-                              std::to_string(values.size() + added) + " found); raise band_size");
-      nev = nev + nev / 2;
-      --band;
+    if(below != accepted + added) {
+      retry(true, std::to_string(below) + " eigenvalues below " + std::to_string(cut) + ", " +
+                    std::to_string(accepted + added) + " found");
       continue;
     }
-    for(Eigen::Index j = 0; j < top; ++j) {
-      if(band > 0 && F.values[j] < u) continue;
+    for(Eigen::Index j = first_new; j < cut_at; ++j) {
       values.push_back(F.values[j]);
       vectors.push_back(F.vectors.col(j));
     }
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
     u = cut;
-    retries = 0;
-    nev = B;
-    if(Eigen::Index(values.size()) >= n - 2) break;
+    ++band;
+    attempt = 0;  // a window widened for a cluster is kept: a sphere's clusters grow with lambda
   }
   Spectral_pairs out;
-  // Keep all pairs up to the end of the cluster of lambda_{k-1} (bands end at gaps).
-  Eigen::Index keep = Eigen::Index(values.size());
+  // Every band ends at a gap: the held set holds whole clusters.
+  const Eigen::Index keep = Eigen::Index(values.size());
   out.values = Eigen::Map<Eigen::VectorXd>(values.data(), keep);
   out.vectors.resize(n, keep);
   for(Eigen::Index j = 0; j < keep; ++j) out.vectors.col(j) = vectors[std::size_t(j)];
