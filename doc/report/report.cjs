@@ -65,7 +65,12 @@ const COURSE = {
       'reconstruction error at k = 5, 10, 30. The course\'s symmetry makes its eigenvalues repeat: k = 5, 10, 30 and 100 all cut ' +
       'through an eigenspace there, so its k-images depend on the basis the solver picks; the box has simple eigenvalues. ' +
       `Its cotangent bound is ${g(x.bound(x.BOX, 'cotangent') / COURSE.bumpy.cotangent, 2)} × the course mesh\'s: the ` +
-      'random sample has no triangle as small as the course mesh\'s smallest.',
+      'random sample has no triangle as small as the course mesh\'s smallest. Rendered side by side with the same URLs ' +
+      '(not committed: the course\'s mesh is not ours to publish), the two show the same artefacts: 15 uniform steps at 1.2 × ' +
+      'the bound turn both into a ball of spikes (largest displacement 13% of the diagonal on the course\'s mesh, 46% on the box), ' +
+      '20 cotangent steps at 1.5 × the bound crumple only the bump tips on both (23% and 15%), and 20 cotangent steps at ' +
+      'the seed\'s λ = 0.01 smooth both and lower the bumps without artefacts. Their cotangent mean curvature maps agree on the faces, edges and ' +
+      'bumps; the box\'s concave creases where the bumps meet it are sharper (no fillet), so its negative range is wider.',
       '',
       '**Where a conclusion differs on the course\'s meshes.** The seed\'s λ = 5e-7 for the bunny is ' +
       `${g(5e-7 / COURSE.bunny.cotangent, 2)} × the cotangent bound of the course\'s bunny.off (${g(COURSE.bunny.cotangent)}, ` +
@@ -222,7 +227,8 @@ const reconAt = (m, k) => Number((recon[m].find((x) => Number(x.k) === k) || {})
 p(`How many eigenvectors are needed: with 5 the shape is a blob (${names.map((m) => `${m} ${g(100 * reconAt(m, 5), 2)}%`).join(', ')} ` +
   `of the diagonal); 30 give the overall shape (${names.map((m) => `${g(100 * reconAt(m, 30), 2)}%`).join(', ')}); ` +
   `the legs, ears and bumps need 100-300 (${names.map((m) => `${g(100 * reconAt(m, 300), 2)}%`).join(', ')} at k = 300). ` +
-  'On the bumpy box k = 5 is a rounded blob, k = 10 a box, and the bumps rise from k = 30 on; ' +
+  'On the bumpy box k = 5 and 10 are rounded, octahedron-like blobs that differ in where they bulge (their errors ' +
+  `are close: ${g(100 * reconAt(BOX, 5), 2)}% and ${g(100 * reconAt(BOX, 10), 2)}%), and the bumps rise from k = 30 on, as on the course's bumpy.off; ` +
   'the error falls slowest on the bunny, whose detail is spread over the whole spectrum.', '');
 
 p('## Explicit smoothing and the stable time step (seed Figures 7-9 and its table of λ)', '',
@@ -350,11 +356,13 @@ if (!haveStudy) {
 }
 p('Figures: the Gaussian curvature (angle deficit over the barycentric area, in the clean mesh\'s colour range of ' +
   'Figure 4 above) of the noisy mesh and of the best explicit and implicit results of the study (same noise, scheme, ' +
-  'Laplacian, λ and step count): a second-order quantity, so it makes the remaining noise visible.', '');
+  'Laplacian, λ and step count): a second-order quantity, so it makes the remaining noise visible. Each caption says what was ' +
+  'computed. The angle deficit uses no Laplacian, but the colour bar names the URL\'s one `laplacian` parameter, which also ' +
+  'sets the smoothing\'s: it reads "uniform" on the clean and noisy maps and names the smoothing\'s Laplacian on a denoised one.', '');
 for (const m of names.filter((x) => study(x) || !names.some(study))) {
   p(`**${m}**${study(m) ? '' : ' (no study: fixed settings)'}`, '', ...table(['noise level', 'noisy', 'explicit', 'implicit'], FIGURE_LEVELS.map((level) => [level,
-    img(`${m}_noisy_${level}`, `${m} noisy ${level}`), img(`${m}_denoised_explicit_${level}`, `${m} explicit ${level}`),
-    img(`${m}_denoised_implicit_${level}`, `${m} implicit ${level}`)])), '');
+    cell(`${m}_noisy_${level}`, `${m} noisy ${level}`), cell(`${m}_denoised_explicit_${level}`, `${m} explicit ${level}`),
+    cell(`${m}_denoised_implicit_${level}`, `${m} implicit ${level}`)])), '');
   const settings = FIGURE_LEVELS.map((level) => ['explicit', 'implicit'].map((s) => {
     const a = answer(`${m}_denoised_${s}_${level}`, 'smooth');
     const q = new URLSearchParams(results[`${m}_denoised_${s}_${level}`].query);
