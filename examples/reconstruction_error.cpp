@@ -2,7 +2,7 @@
 // One basis (cotangent Laplacian, mixed areas) is computed for the largest k, then every k
 // is a projection onto its first k vectors.
 // Usage: reconstruction_error [mesh.off|obj|ply|stl] [k ...]
-//        (default: a generated bumpy sphere; k = 5 10 30 100 300, capped at the vertex count)
+//        (default: lapmesh::bumpy_box(); k = 5 10 30 100 300, capped at the vertex count)
 // Output: k,rms_distance,rms_over_diagonal,max_over_diagonal,eigenvalue,splits_eigenspace
 //   rms_distance: RMS over vertices of |x_k - x|; the ratios divide by the bounding-box
 //   diagonal, so meshes of any size compare; eigenvalue: lambda_{k-1}.
@@ -24,11 +24,11 @@ namespace LP = lapmesh::parameters;
 
 int main(int argc, char** argv)
 {
-  const std::string name = argc > 1 ? argv[1] : "bumpy sphere";
+  const std::string name = argc > 1 ? argv[1] : "bumpy box";
   try {
     Mesh mesh;
     if(argc > 1) lapmesh::io::read_triangle_mesh(argv[1], mesh);
-    else lapmesh::make_mesh(lapmesh::bumpy_sphere(4), mesh);
+    else lapmesh::make_mesh(lapmesh::bumpy_box(), mesh);
     const auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
     const Eigen::Index n = P.rows();
 

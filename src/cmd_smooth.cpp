@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include <unistd.h>
@@ -58,9 +59,21 @@ void run(const Smooth_options& o)
 
   lapmesh::Smoothing_report report;
   double lambda = lambda_value;
+  // The explicit scheme's bound is computed once, by explicit_stability_bound() on the input's
+  // free vertices, and serves --lambda auto, --lambda-unit bound, the warning and the printed
+  // figure (the smoother's own report may hold a cheaper Gershgorin bound instead).
+  const bool explicit_scheme = scheme == lapmesh::Smoothing_scheme::explicit_euler;
+  double bound = std::numeric_limits<double>::quiet_NaN();
   try {
-    lambda = lambda_auto ? lapmesh::automatic_time_step(mesh, scheme, base)
-                         : lapmesh::time_step(mesh, lambda_value, *lapmesh::parse_time_step_unit(o.lambda_unit), base);
+    if(explicit_scheme) bound = lapmesh::explicit_stability_bound(mesh, base);
+    const auto unit = *lapmesh::parse_time_step_unit(o.lambda_unit);
+    if(lambda_auto)
+      lambda = explicit_scheme ? lapmesh::automatic_explicit_time_step(bound)
+                               : lapmesh::automatic_time_step(mesh, scheme, base);
+    else
+      lambda = explicit_scheme && unit == lapmesh::Time_step_unit::stability_bound
+                 ? lambda_value * bound
+                 : lapmesh::time_step(mesh, lambda_value, unit, base);
 
     auto np = lapmesh::parameters::reuse_factorization(o.reuse_factorization, lapmesh::parameters::progress_callback(
       progress, lapmesh::parameters::restore_area(
@@ -81,9 +94,9 @@ void run(const Smooth_options& o)
     if(tty && progress) std::cerr << '\n';
     throw Failure(o.input + ": " + e.what());
   }
-  if(report.above_stability_bound)
-    std::cerr << o.input << ": warning: lambda " << lambda << " exceeds the explicit stability bound "
-              << report.stability_bound << " (use --lambda auto or --lambda-unit bound)\n";
+  if(explicit_scheme && lambda > bound)
+    std::cerr << o.input << ": warning: lambda " << lambda << " exceeds the explicit stability bound " << bound
+              << " (use --lambda auto or --lambda-unit bound)\n";
   try {
     const auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
     lapmesh::io::write_mesh(o.output, P, tris);
@@ -94,8 +107,7 @@ void run(const Smooth_options& o)
     std::cout << o.input << ": " << num_vertices(mesh) << " vertices (" << report.free_vertices << " free); "
               << o.scheme << " " << o.laplacian << " smoothing, lambda " << lambda << ", " << report.iterations
               << " iteration(s)";
-    if(scheme == lapmesh::Smoothing_scheme::explicit_euler)
-      std::cout << ", stability bound " << report.stability_bound;
+    if(explicit_scheme) std::cout << ", stability bound " << bound;
     std::cout << "; wrote " << o.output << '\n';
   }
 }
@@ -107,8 +119,8 @@ void register_smooth(CLI::App& app)
   auto o = std::make_shared<Smooth_options>();
   CLI::App* cmd = app.add_subcommand("smooth", "explicit or implicit Laplacian smoothing (mean curvature flow)");
   cmd->footer(
-    "explicit: P <- P + lambda L P, stable only for lambda below 2/mu_max (mu_max: largest eigenvalue of -L,\n"
-    "computed by Lanczos and printed); a warning is printed above it.\n"
+    "explicit: P <- P + lambda L P, stable only for lambda below 2/mu_max (mu_max: largest eigenvalue of -L on\n"
+    "the free vertices of the input, computed by Lanczos and printed); a warning is printed above it.\n"
     "implicit: (M - lambda S) P' = M P (backward Euler, sparse Cholesky). conformal: Kazhdan et al. 2012.\n"
     "The operator is rebuilt from the current positions every iteration unless --fixed-operator.\n"
     "Boundary vertices stay fixed unless --free-boundary. --lambda auto: 0.9 x the stability bound (explicit) or one mean edge\n"

@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <set>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -705,4 +706,115 @@ TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
   r = run_cli("noise " + in + " -o " + n1 + " --level -1");
   EXPECT_NE(r.status, 0);
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
+
+namespace {
+
+// Runs the CLI and returns its stdout (empty on a non-zero status).
+std::string cli_stdout(const std::string& args)
+{
+  const std::string out_path = lapmesh_test::scratch_dir() + "/smooth_stdout.txt";
+  const std::string cmd = std::string(LAPMESH_CLI) + " " + args + " >" + out_path + " 2>/dev/null";
+  const int raw = std::system(cmd.c_str());
+  std::ifstream in(out_path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return WIFEXITED(raw) && WEXITSTATUS(raw) == 0 ? ss.str() : std::string();
+}
+
+double printed_bound(const std::string& line)
+{
+  const std::string key = "stability bound ";
+  const auto at = line.find(key);
+  return at == std::string::npos ? std::nan("") : std::strtod(line.c_str() + at + key.size(), nullptr);
+}
+
+} // namespace
+
+// `lapmesh smooth` printed the smoother's Gershgorin lower bound when lambda was small and the
+// Lanczos bound with --lambda auto: one mesh, two "stability bounds". Every path now prints
+// explicit_stability_bound() of the free vertices, which the dense eigen-solve above checks.
+TEST(SmoothingCli, OneStabilityBoundWhateverTheLambda)
+{
+  const std::string closed = lapmesh_test::scratch_dir() + "/bound_closed.off";
+  const std::string open = lapmesh_test::scratch_dir() + "/bound_open.off";
+  for(const auto& [path, soup] : {std::pair{closed, lapmesh::icosphere(3)}, std::pair{open, bumpy_patch(12)}}) {
+    const Mesh m = jittered(soup, 0.02, 7);
+    const auto [P, tris] = lapmesh::io::mesh_arrays(m);
+    lapmesh::io::write_mesh(path, P, tris);
+  }
+  const std::string out = lapmesh_test::scratch_dir() + "/bound_out.off";
+  for(const std::string& in : {closed, open})
+    for(const std::string lap : {"cotangent", "uniform"})
+      for(const std::string boundary : {"", " --free-boundary"}) {
+        Mesh m;
+        lapmesh::io::read_triangle_mesh(in, m);
+        const auto np = LP::fix_boundary(boundary.empty(), LP::laplacian(*lapmesh::parse_laplacian(lap)));
+        const double bound = lapmesh::explicit_stability_bound(m, np);
+        // The case that printed the other number: a lambda the Gershgorin bound already proves stable.
+        Mesh copy = m;
+        const auto r = lapmesh::smooth_laplacian_explicit(copy, 1e-3 * bound, np);
+        EXPECT_FALSE(r.stability_bound_exact);
+        EXPECT_LT(r.stability_bound, 0.99 * bound) << in << ' ' << lap;
+
+        const std::string common = "smooth " + in + " -o " + out + " --scheme explicit --iterations 1 --laplacian " + lap + boundary;
+        std::vector<double> printed;
+        auto number = [](double x) {
+          std::ostringstream os;
+          os.precision(17);
+          os << x;
+          return os.str();
+        };
+        const std::vector<std::string> lambdas = {" --lambda " + number(1e-3 * bound), " --lambda auto",
+                                                  " --lambda 0.5 --lambda-unit bound", " --lambda " + number(3 * bound)};
+        for(const std::string& lambda : lambdas)
+          printed.push_back(printed_bound(cli_stdout(common + lambda)));
+        for(double b : printed) EXPECT_NEAR(b, bound, 1e-5 * bound) << in << ' ' << lap << boundary;  // 6 digits printed
+      }
+}
+
+// lapmesh::bumpy_box(), the report's stand-in for the course's bumpy mesh: a closed, outward
+// oriented, irregular triangulation of its surface, reproducible from its seed.
+TEST(Shapes, BumpyBoxIsAnIrregularClosedSampleOfItsSurface)
+{
+  const lapmesh::Triangle_soup soup = lapmesh::bumpy_box(1);
+  EXPECT_GE(soup.points.size(), 1100u);
+  EXPECT_LE(soup.points.size(), 1350u);
+  Mesh m;
+  ASSERT_TRUE(lapmesh::make_mesh(soup, m));
+  EXPECT_TRUE(CGAL::is_closed(m));
+  EXPECT_EQ(long(num_vertices(m)) - long(num_edges(m)) + long(num_faces(m)), 2);  // a sphere's topology
+  EXPECT_GT(CGAL::Polygon_mesh_processing::volume(m), 0.0);                          // outward normals
+
+  double lo = 1e9, hi = -1e9, min_angle = 180, min_edge = 1e9;
+  for(const auto& p : soup.points) {
+    const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    const auto q = lapmesh::bumpy_box_surface_point({p[0] / r, p[1] / r, p[2] / r});
+    EXPECT_NEAR(std::hypot(q[0] - p[0], q[1] - p[1], q[2] - p[2]), 0.0, 1e-12);  // on the surface
+    for(double c : p) { lo = std::min(lo, c); hi = std::max(hi, c); }
+  }
+  EXPECT_NEAR(lo, -4.4, 1e-9);  // the bump tips are vertices
+  EXPECT_NEAR(hi, 4.4, 1e-9);
+  std::set<int> valences;
+  for(auto v : vertices(m)) valences.insert(int(degree(v, m)));
+  EXPECT_GE(valences.size(), 4u);  // irregular: not a subdivision's valence-6 lattice
+  for(auto f : faces(m)) {
+    std::array<Eigen::Vector3d, 3> c;
+    int i = 0;
+    for(auto v : vertices_around_face(halfedge(f, m), m)) c[i++] << m.point(v).x(), m.point(v).y(), m.point(v).z();
+    for(int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d u = c[(k + 1) % 3] - c[k], w = c[(k + 2) % 3] - c[k];
+      min_angle = std::min(min_angle, std::acos(u.dot(w) / (u.norm() * w.norm())) * 180 / M_PI);
+      min_edge = std::min(min_edge, u.norm());
+    }
+  }
+  EXPECT_GT(min_angle, 20.0);            // Delaunay on the surface: no needles
+  EXPECT_GE(min_edge, 0.3 * (1 - 1e-12)); // the Poisson-disk spacing
+
+  const auto again = lapmesh::bumpy_box(1), other = lapmesh::bumpy_box(2);
+  EXPECT_EQ(again.points, soup.points);
+  EXPECT_EQ(again.triangles, soup.triangles);
+  EXPECT_NE(other.points, soup.points);
+  EXPECT_THROW(lapmesh::bumpy_box(1, 0.01), std::invalid_argument);
+  EXPECT_THROW(lapmesh::bumpy_box(1, std::nan("")), std::invalid_argument);
 }

@@ -5,10 +5,14 @@
 //
 // Usage: node render.cjs JOBS.json
 //   JOBS.json: {"cli": "build/src/lapmesh", "node_modules": "...", "chromium": "/usr/bin/chromium",
-//               "meshes": ["a.off", ...], "out_dir": "doc/images/report", "results": "r.json",
-//               "width": 600, "height": 450,
-//               "download": [{"mesh": "bumpy-sphere", "to": "bumpy.off"}],      (optional)
-//               "figures": [{"name": "cow_mean_uniform", "query": "mesh=cow&op=curvature&..."}]}
+//               "meshes": [{"key": "cow", "file": "a/cow.off"}, ...], "out_dir": "doc/images/report",
+//               "results": "r.json", "width": 600, "height": 450,
+//               "download": [{"mesh": "bumpy-sphere", "to": "bumpy.off"}],      (optional, a viewer id)
+//               "figures": [{"name": "cow_mean_uniform", "mesh": "cow", "query": "op=curvature&..."}]}
+//   A figure names its mesh by key; the viewer's id for it (which the viewer makes from the
+//   file name, so two cow.off are "cow" and "cow-2") is looked up by the file's position.
+//   (A mesh given as a plain path, and a figure without "mesh" whose query holds mesh=ID, work
+//   too: the query is then used as it is.)
 //   In a query, RANGE_OF(NAME) stands for the manual colour range of the earlier figure NAME.
 //   Writes out_dir/NAME.png per figure and, in "results", per figure: the colour range shown,
 //   the data range, and the answers of the operations the page ran (lambda, sigma, bound, ...).
@@ -26,6 +30,7 @@ function fail(message) {
 }
 
 const jobs = JSON.parse(fs.readFileSync(process.argv[2] || fail('usage: node render.cjs JOBS.json'), 'utf8'));
+jobs.meshes = (jobs.meshes || []).map((m) => (typeof m === 'string' ? { key: null, file: m } : m));
 let chromium;
 try {
   ({ chromium } = require(path.resolve(jobs.node_modules, 'playwright-core')));
@@ -34,7 +39,7 @@ try {
 }
 
 function startServer() {
-  const proc = spawn(jobs.cli, ['view', ...jobs.meshes], { stdio: ['ignore', 'pipe', 'pipe'] });
+  const proc = spawn(jobs.cli, ['view', ...jobs.meshes.map((m) => m.file)], { stdio: ['ignore', 'pipe', 'pipe'] });
   let stderr = '';
   proc.stderr.on('data', (d) => { stderr += d; });
   const url = new Promise((resolve, reject) => {
@@ -61,6 +66,15 @@ async function main() {
       if (!r.ok) throw new Error(`download of ${d.mesh}: HTTP ${r.status} ${await r.text()}`);
       fs.writeFileSync(d.to, Buffer.from(await r.arrayBuffer()));
     }
+    // The viewer lists the files given first, in order, then its built-in meshes.
+    const listed = (await (await fetch(new URL('api/meshes', url))).json()).meshes;
+    const idOf = {};
+    jobs.meshes.forEach((m, i) => {
+      const v = listed[i];
+      if (!v || v.kind !== 'file' || v.label !== path.basename(m.file))
+        throw new Error(`the viewer lists ${JSON.stringify(v)} where ${m.file} was expected`);
+      if (m.key !== null) idOf[m.key] = v.id;
+    });
     const figures = jobs.figures || [];
     if (figures.length === 0) return;
     fs.mkdirSync(jobs.out_dir, { recursive: true });
@@ -91,8 +105,9 @@ async function main() {
         const [lo, hi] = results[other].colour_range;
         return `range=manual&min=${lo}&max=${hi}`;
       });
-      fig.query = query;
-      await page.goto(`${url}?${query}`);
+      if (fig.mesh !== undefined && !idOf[fig.mesh]) throw new Error(`figure ${fig.name}: unknown mesh key ${fig.mesh}`);
+      fig.query = fig.mesh === undefined ? query : `mesh=${encodeURIComponent(idOf[fig.mesh])}&${query}`;
+      await page.goto(`${url}?${fig.query}`);
       await page.waitForFunction(() => document.body.dataset.ready === '1', null, { timeout: 300000 });
       const shown = await page.evaluate(() => {
         const e = document.getElementById('error');

@@ -1,8 +1,9 @@
 // The two halves of scripts/report.sh that need more than shell:
 //   node report.cjs jobs WORK CLI NODE_MODULES CHROMIUM IMAGES   -> jobs JSON for render.cjs (stdout)
 //   node report.cjs report WORK SECONDS STUDY                    -> doc/report.md (stdout)
-// WORK holds what report.sh measured: meshes.txt, bounds.csv, recon_NAME.csv, study_NAME.csv
-// (lapmesh denoise-study) and, after rendering, results.json.
+// WORK holds what report.sh measured: meshes.tsv (KEY, ORIGIN, PATH per mesh), bounds.csv,
+// recon_KEY.csv, study_KEY.csv (lapmesh denoise-study) and, after rendering, results.json.
+// Everything is keyed by the mesh's key, which report.sh makes unique per path.
 'use strict';
 const fs = require('node:fs');
 const path = require('node:path');
@@ -11,8 +12,10 @@ const [mode, work] = process.argv.slice(2, 4);
 const fail = (m) => { process.stderr.write(`report.cjs: ${m}\n`); process.exit(1); };
 if (!mode || !work) fail('usage: node report.cjs jobs|report WORK ...');
 
-const meshes = fs.readFileSync(path.join(work, 'meshes.txt'), 'utf8').split('\n').filter(Boolean)
-  .map((file) => ({ file, name: path.basename(file).replace(/\.[^.]*$/, '') }));
+const meshes = fs.readFileSync(path.join(work, 'meshes.tsv'), 'utf8').split('\n').filter(Boolean)
+  .map((line) => { const [key, origin, file] = line.split('\t'); return { key, origin, file }; });
+if (new Set(meshes.map((m) => m.key)).size !== meshes.length) fail('meshes.tsv: two meshes share a key');
+const BOX = 'bumpy-box';   // report.sh's generated mesh: lapmesh::bumpy_box(seed 1)
 function csv(file) {
   const lines = fs.readFileSync(file, 'utf8').trim().split('\n');
   const head = lines[0].split(',');
@@ -33,8 +36,55 @@ const FIGURE_LEVELS = [0.02, 0.1, 0.3];
 // Explicit steps above the bound: enough growth to show the artefacts, not so much that the
 // exploded mesh fills the screen (1.5 x the uniform bound for 15 steps makes the cow 166 diagonals large).
 const LARGE = { uniform: { factor: 1.2, iterations: 15 }, cotangent: { factor: 1.5, iterations: 20 } };
-const GRID_MESH = 'bunny00';   // the issue #3 figure grid: k = 5, 10, 30, 100, 300
+// The issue #3 figure grid (k = 5, 10, 30, 100, 300) on CGAL's bunny00 (report.sh lists the
+// built-in meshes first: their keys are their names).
+const GRID_MESH = 'bunny00';
 const GRID_K = [5, 10, 30, 100, 300];
+// The course's meshes (not in the repository), measured with this version by
+// `scripts/report.sh path/to/bumpy.off path/to/cow.off path/to/bunny.off` and `lapmesh smooth`:
+// vertices, bounding box, cotangent and uniform explicit stability bounds (barycentric mass),
+// mean edge length squared, reconstruction error / diagonal at k = 5, 10, 30.
+const COURSE = {
+  date: '2026-11-22',
+  bumpy: { vertices: 1250, box: 4.378, cotangent: 0.0187721, uniform: 1.33877, edge2: 0.157933 },
+  cow: { vertices: 2762, cotangent: 1.46899e-6, uniform: 1.33939, edge2: 0.00050825 },
+  bunny: { vertices: 3485, cotangent: 1.93003e-7, uniform: 1.35878, edge2: 2.17258e-5 },
+  bumpyRecon: [0.0206713, 0.0205911, 0.0155211],   // every one of these k splits a repeated eigenvalue
+  bumpyEigen: [0.365969, 0.725848, 2.41192],        // lambda_{k-1} at k = 5, 10, 30
+  // the seed's 5e-7 on the course's bunny.off: largest displacement / diagonal after 10 and 100 steps
+  bunnyRebuilt: [0.0148, 0.0705], bunnyFixed10: 337,
+  notes: (x) => {
+    const box = csv(path.join(work, `recon_${x.BOX}.csv`));
+    const eig = [5, 10, 30].map((k) => Number(box.find((r) => Number(r.k) === k).eigenvalue));
+    return [
+      '**The bumpy box against the course\'s bumpy.off.** Both are a rounded cube with one bump along each axis, about ' +
+      `1.2k vertices, a bounding box of ±4.4 and a mean edge of 0.4 (${g(Math.sqrt(COURSE.bumpy.edge2))} and ${g(Math.sqrt(x.edge2(x.BOX)))}). ` +
+      'The course\'s mesh is triangulated with the cube\'s full symmetry (valences 4-8, angles 36-96°); the box is ' +
+      'sampled at random (valences 4-9, angles 30-118°). Their low spectra agree (λ_4, λ_9, λ_29 = ' +
+      `${COURSE.bumpyEigen.map((e) => g(e)).join(', ')} against ${eig.map((e) => g(e)).join(', ')}), and so does the ` +
+      'reconstruction error at k = 5, 10, 30. The course\'s symmetry makes its eigenvalues repeat: k = 5, 10, 30 and 100 all cut ' +
+      'through an eigenspace there, so its k-images depend on the basis the solver picks; the box has simple eigenvalues. ' +
+      `Its cotangent bound is ${g(x.bound(x.BOX, 'cotangent') / COURSE.bumpy.cotangent, 2)} × the course mesh\'s: the ` +
+      'random sample has no triangle as small as the course mesh\'s smallest. Rendered side by side with the same URLs ' +
+      '(not committed: the course\'s mesh is not ours to publish), the two show the same artefacts: 15 uniform steps at 1.2 × ' +
+      'the bound turn both into a ball of spikes (largest displacement 13% of the diagonal on the course\'s mesh, 46% on the box), ' +
+      '20 cotangent steps at 1.5 × the bound crumple only the bump tips on both (23% and 15%), and 20 cotangent steps at ' +
+      'the seed\'s λ = 0.01 smooth both and lower the bumps without artefacts. Their cotangent mean curvature maps agree on the faces, edges and ' +
+      'bumps; the box\'s concave creases where the bumps meet it are sharper (no fillet), so its negative range is wider.',
+      '',
+      '**Where a conclusion differs on the course\'s meshes.** The seed\'s λ = 5e-7 for the bunny is ' +
+      `${g(5e-7 / COURSE.bunny.cotangent, 2)} × the cotangent bound of the course\'s bunny.off (${g(COURSE.bunny.cotangent)}, ` +
+      `${COURSE.bunny.vertices} vertices); the ${g(5e-7 / x.bound('bunny00', 'cotangent'), 2)} × of the λ section is against CGAL\'s ` +
+      `bunny00.off (${x.vertices('bunny00')} vertices), another mesh. Measured with \`lapmesh smooth --scheme explicit --lambda 5e-7\` ` +
+      'on the course\'s bunny: with the operator rebuilt every step (the default) the largest displacement is ' +
+      `${g(100 * COURSE.bunnyRebuilt[0], 2)}% of the diagonal after 10 steps and ${g(100 * COURSE.bunnyRebuilt[1], 2)}% after 100, ` +
+      'because the unstable modes sit on a few small triangles that the flow itself enlarges; with `--fixed-operator` ' +
+      `10 steps blow the bunny up to ${COURSE.bunnyFixed10} diagonals. The seed\'s value looked right only because its operator followed the ` +
+      `mesh. Its 1e-6 for the cow is ${g(1e-6 / COURSE.cow.cotangent, 2)} × the bound of the course\'s cow.off ` +
+      `(${COURSE.cow.vertices} vertices; CGAL\'s has ${x.vertices('cow')}), and 0.01 is ${g(0.01 / COURSE.bumpy.cotangent, 2)} × that of its bumpy.off.`,
+    ];
+  },
+};
 const view = 'ui=0&azimuth=60&elevation=10&zoom=1.3';
 const viewOf = (m) => (m === 'bunny00' ? 'ui=0&azimuth=0&elevation=10&zoom=1.3' : view);
 
@@ -56,32 +106,35 @@ function denoiseSettings(mesh, level, scheme) {
 
 function figures() {
   const figs = [];
-  const add = (name, query) => figs.push({ name, query });
-  for (const { name: m } of meshes) {
+  for (const { key: m } of meshes) {
+    const add = (name, query) => figs.push({ name, mesh: m, query });
     const v = viewOf(m);
     const cm = 'colormap=coolwarm&range=percentile&clip=1';
-    add(`${m}_mean_uniform`, `mesh=${m}&op=curvature&laplacian=uniform&area=barycentric&quantity=mean&${cm}&${v}`);
-    add(`${m}_gaussian`, `mesh=${m}&op=curvature&laplacian=uniform&area=barycentric&quantity=gaussian&${cm}&${v}`);
-    add(`${m}_mean_cotangent`, `mesh=${m}&op=curvature&laplacian=cotangent&area=mixed&quantity=mean&${cm}&${v}`);
+    add(`${m}_mean_uniform`, `op=curvature&laplacian=uniform&area=barycentric&quantity=mean&${cm}&${v}`);
+    add(`${m}_gaussian`, `op=curvature&laplacian=uniform&area=barycentric&quantity=gaussian&${cm}&${v}`);
+    add(`${m}_mean_cotangent`, `op=curvature&laplacian=cotangent&area=mixed&quantity=mean&${cm}&${v}`);
     for (const k of m === GRID_MESH ? GRID_K : [5, 10, 30])
-      add(`${m}_reconstruct_k${k}`, `mesh=${m}&op=reconstruct&k=${k}&laplacian=cotangent&area=mixed&colormap=viridis&${v}`);
+      add(`${m}_reconstruct_k${k}`, `op=reconstruct&k=${k}&laplacian=cotangent&area=mixed&colormap=viridis&${v}`);
     for (const lap of ['uniform', 'cotangent']) {
-      add(`${m}_explicit_${lap}_stable`, `mesh=${m}&op=smooth&scheme=explicit&laplacian=${lap}&lambda=0.9&lambda_unit=bound&iterations=20&colormap=viridis&${v}`);
-      add(`${m}_explicit_${lap}_large`, `mesh=${m}&op=smooth&scheme=explicit&laplacian=${lap}&lambda=${LARGE[lap].factor}&lambda_unit=bound&iterations=${LARGE[lap].iterations}&colormap=viridis&${v}`);
+      add(`${m}_explicit_${lap}_stable`, `op=smooth&scheme=explicit&laplacian=${lap}&lambda=0.9&lambda_unit=bound&iterations=20&colormap=viridis&${v}`);
+      add(`${m}_explicit_${lap}_large`, `op=smooth&scheme=explicit&laplacian=${lap}&lambda=${LARGE[lap].factor}&lambda_unit=bound&iterations=${LARGE[lap].iterations}&colormap=viridis&${v}`);
     }
     for (const lam of ['1', '1e-3', '1e-5'])
-      add(`${m}_implicit_${lam}`, `mesh=${m}&op=smooth&scheme=implicit&laplacian=cotangent&lambda=${lam}&lambda_unit=absolute&iterations=1&colormap=viridis&${v}`);
-    // Gaussian curvature (angle deficit / barycentric area) does not depend on the Laplacian, and the
-    // URL's `laplacian` sets the smoothing's and the curvature's at once; barycentric is also the study's area.
+      add(`${m}_implicit_${lam}`, `op=smooth&scheme=implicit&laplacian=cotangent&lambda=${lam}&lambda_unit=absolute&iterations=1&colormap=viridis&${v}`);
+    // Gaussian curvature (angle deficit / barycentric area) does not depend on the Laplacian, but
+    // the URL's one `laplacian` sets the smoothing's and the curvature's, and the colour bar names
+    // it: the clean and noisy maps use the same (uniform), a denoised map names its smoothing's,
+    // and every figure is captioned with what was computed (caption()). Barycentric is also the
+    // study's area.
     const ref = `${m}_gaussian`;
     // denoising figures: the meshes the study ran on (all meshes with fixed settings when there is no study)
-    if (!study(m) && meshes.some((x) => study(x.name))) continue;
+    if (!study(m) && meshes.some((x) => study(x.key))) continue;
     for (const level of FIGURE_LEVELS) {
       const noise = `level=${level}&seed=1&scale=mean-edge&direction=isotropic`;
-      add(`${m}_noisy_${level}`, `mesh=${m}&op=noise,curvature&${noise}&laplacian=cotangent&area=barycentric&quantity=gaussian&colormap=coolwarm&RANGE_OF(${ref})&${v}`);
+      add(`${m}_noisy_${level}`, `op=noise,curvature&${noise}&laplacian=uniform&area=barycentric&quantity=gaussian&colormap=coolwarm&RANGE_OF(${ref})&${v}`);
       for (const scheme of ['explicit', 'implicit']) {
         const s = denoiseSettings(m, level, scheme);
-        add(`${m}_denoised_${scheme}_${level}`, `mesh=${m}&op=noise,smooth,curvature&${noise}&scheme=${scheme}&lambda=${s.lambda}` +
+        add(`${m}_denoised_${scheme}_${level}`, `op=noise,smooth,curvature&${noise}&scheme=${scheme}&lambda=${s.lambda}` +
           `&lambda_unit=${s.unit}&iterations=${s.iterations}&area=barycentric&laplacian=${s.laplacian}&quantity=gaussian&colormap=coolwarm&RANGE_OF(${ref})&${v}`);
       }
     }
@@ -91,8 +144,8 @@ function figures() {
 
 if (mode === 'jobs') {
   const [cli, nodeModules, chromium, images] = process.argv.slice(4, 8);
-  process.stdout.write(JSON.stringify({ cli, node_modules: nodeModules, chromium, meshes: meshes.map((m) => m.file),
-    out_dir: images, results: path.join(work, 'results.json'), width: 600, height: 450, figures: figures() }, null, 1));
+  process.stdout.write(JSON.stringify({ cli, node_modules: nodeModules, chromium, meshes: meshes.map(({ key, file }) => ({ key, file })),
+    out_dir: images, results: path.join(work, 'results.json'), width: 480, height: 360, figures: figures() }, null, 1));
   process.exit(0);
 }
 if (mode !== 'report') fail(`unknown mode ${mode}`);
@@ -104,7 +157,22 @@ const g = (x, d = 3) => (x === undefined || !Number.isFinite(Number(x)) ? String
 const img = (name, alt) => `![${alt}](images/report/${name}.png)`;
 const answer = (fig, op) => (results[fig].answers || []).filter((a) => a.op === op).pop() || {};
 const range = (fig) => results[fig].colour_range.map((x) => g(x)).join(', ');
-const names = meshes.map((m) => m.name);
+// What a figure shows, from the operations the page ran (their answers) and its query.
+function caption(fig) {
+  const q = new URLSearchParams(results[fig].query);
+  const parts = [];
+  for (const op of (q.get('op') || '').split(',')) {
+    const a = answer(fig, op);
+    if (op === 'noise') parts.push(`noise σ = ${g(a.sigma)}`);
+    else if (op === 'smooth') parts.push(`${q.get('scheme')} ${q.get('laplacian')} smoothing, λ = ${g(a.lambda)}, ${q.get('iterations')} it.`);
+    else if (op === 'reconstruct') parts.push(`k = ${q.get('k')} (cotangent, ${q.get('area')} area)`);
+    else if (op === 'curvature') parts.push(q.get('quantity') === 'gaussian' ? `K: angle deficit / ${q.get('area')} area`
+      : `${q.get('quantity')} curvature (${q.get('laplacian')}, ${q.get('area')} area)`);
+  }
+  return parts.join(' → ');
+}
+const cell = (fig, alt) => `${img(fig, alt)}<br>${caption(fig)}`;
+const names = meshes.map((m) => m.key);
 const out = [];
 const p = (...lines) => out.push(...lines);
 const row = (cells) => `| ${cells.join(' | ')} |`;
@@ -116,22 +184,28 @@ p('# The seed report, reproduced with lapmesh', '',
   '', 'Every image is a screenshot of `lapmesh view` (the project\'s viewer, driven by headless Chromium through ' +
   'URL parameters, see [viewer.md](viewer.md)); every number comes from `lapmesh smooth`, `lapmesh denoise-study` or the ' +
   'example program `examples/reconstruction_error.cpp`, run by the script. The viewer URL of every figure is listed at the end.',
-  '', 'Meshes: a bumpy sphere generated by `lapmesh/shapes.h` (`bumpy_sphere(5)`, the viewer\'s built-in `bumpy-sphere`, ' +
-  'standing in for the seed\'s `bumpy.off`), and CGAL\'s `cow.off` and `bunny00.off` (Debian package `libcgal-demo`).', '',
-  ...table(['mesh', 'vertices', 'mean edge length²'], names.map((m) => [m, vertices(m), g(edge2(m))])), '');
+  '', 'Meshes: `bumpy-box`, generated by lapmesh\'s own code (`lapmesh::bumpy_box()` in `lapmesh/shapes.h`, seed 1, written ' +
+  'by the example program `make_shape`): a rounded box with a cylindrical bump on each face, irregularly triangulated, ' +
+  'standing in for the seed\'s `bumpy.off` (how the two compare: [below](#the-courses-own-meshes)); and CGAL\'s `cow.off` ' +
+  'and `bunny00.off` (Debian package `libcgal-demo`). Every row, file and figure is keyed by the mesh\'s path: a mesh given ' +
+  'on the command line whose name is taken gets its folder\'s name in front (a course\'s `data/cow.off` becomes `data-cow`).', '',
+  ...table(['mesh', 'file', 'vertices', 'mean edge length²'], meshes.map((m) => [m.key,
+    m.origin === 'generated' ? '`make_shape bumpy-box` (seed 1)' : m.origin === 'cgal' ? `CGAL's \`${path.basename(m.file)}\`` : `\`${m.file}\``,
+    vertices(m.key), g(edge2(m.key))])), '');
 
 p('## Curvature (seed Figures 2, 4 and 5)', '',
   'Uniform "mean curvature" ½|L_u x| (the seed\'s Figure 2), Gaussian curvature by angle deficit over the barycentric area ' +
   '(Figure 4), and the cotangent mean curvature with mixed areas (Figure 5). Colour map coolwarm, range clipped at 1% on each side.', '',
-  ...table(['mesh', 'uniform mean', 'Gaussian', 'cotangent mean (mixed area)'],
-    names.map((m) => [m, img(`${m}_mean_uniform`, `${m} uniform mean`), img(`${m}_gaussian`, `${m} Gaussian`), img(`${m}_mean_cotangent`, `${m} cotangent mean`)])),
+  ...table(['mesh', 'uniform mean', 'Gaussian (no Laplacian: the colour bar names the URL\'s)', 'cotangent mean (mixed area)'],
+    names.map((m) => [m, cell(`${m}_mean_uniform`, `${m} uniform mean`), cell(`${m}_gaussian`, `${m} Gaussian`), cell(`${m}_mean_cotangent`, `${m} cotangent mean`)])),
   '', ...table(['mesh', 'uniform mean: colour range', 'Gaussian: colour range', 'cotangent mean: colour range'],
     names.map((m) => [m, range(`${m}_mean_uniform`), range(`${m}_gaussian`), range(`${m}_mean_cotangent`)])), '',
   'The uniform quantity is not a curvature: it scales like a length (its range on the cow, whose mean edge is ' +
   `${g(Math.sqrt(edge2('cow')))}, is ${range('cow_mean_uniform')}, against ${range('cow_mean_cotangent')} for the cotangent one) ` +
   'and it follows the sampling, which is why the uniform maps are patchy where the cotangent maps are smooth ' +
-  '(see [conventions.md](conventions.md)). On the bumpy sphere the uniform map draws the lines of the icosphere\'s ' +
-  'subdivision, where the sampling changes, while the cotangent map shows the bumps. The cotangent mean curvature is positive on convex parts and negative in the ' +
+  '(see [conventions.md](conventions.md)). On the bumpy box the uniform map is speckled by the irregular sampling even on the ' +
+  'flat faces, while the cotangent map is near zero there and picks out the rounded edges, the bumps and the concave creases ' +
+  'where they meet the box. The cotangent mean curvature is positive on convex parts and negative in the ' +
   'saddles and concavities (with outward normals).', '');
 
 p('## Spectral reconstruction (seed Figure 6, issue #3 grid)', '',
@@ -147,14 +221,15 @@ p(...table(['mesh', ...ks.map((k) => `k = ${k}`)], names.map((m) => [m, ...ks.ma
   const r = recon[m].find((x) => Number(x.k) === k);
   return r ? `${g(r.rms_over_diagonal)}${r.splits_eigenspace === '1' ? ' *' : ''}` : '-';
 })])), '', '\\* k cuts through a repeated eigenvalue (λ_{k−1} = λ_k to 1e-8): the result then depends on the basis ' +
-  'the solver picked inside that eigenspace, and `lapmesh reconstruct` warns. The bumpy sphere (an icosphere with a ' +
-  'symmetric bump pattern) has exactly repeated eigenvalues, so its k = 5 and 10 images can differ from run to run.', '');
+  'the solver picked inside that eigenspace, and `lapmesh reconstruct` warns. The bumpy box\'s triangulation has no ' +
+  'symmetry, so its eigenvalues are simple and its images do not depend on the solver\'s choices.', '');
 const reconAt = (m, k) => Number((recon[m].find((x) => Number(x.k) === k) || {}).rms_over_diagonal);
 p(`How many eigenvectors are needed: with 5 the shape is a blob (${names.map((m) => `${m} ${g(100 * reconAt(m, 5), 2)}%`).join(', ')} ` +
   `of the diagonal); 30 give the overall shape (${names.map((m) => `${g(100 * reconAt(m, 30), 2)}%`).join(', ')}); ` +
   `the legs, ears and bumps need 100-300 (${names.map((m) => `${g(100 * reconAt(m, 300), 2)}%`).join(', ')} at k = 300). ` +
-  'The bumpy sphere\'s bumps are spherical harmonics of high degree, so its error stays flat until k passes their ' +
-  'band; the error falls slowest on the bunny, whose detail is spread over the whole spectrum.', '');
+  'On the bumpy box k = 5 and 10 are rounded, octahedron-like blobs that differ in where they bulge (their errors ' +
+  `are close: ${g(100 * reconAt(BOX, 5), 2)}% and ${g(100 * reconAt(BOX, 10), 2)}%), and the bumps rise from k = 30 on, as on the course's bumpy.off; ` +
+  'the error falls slowest on the bunny, whose detail is spread over the whole spectrum.', '');
 
 p('## Explicit smoothing and the stable time step (seed Figures 7-9 and its table of λ)', '',
   'The explicit step P ← P + λ L P is stable only for λ < 2/μ_max (μ_max the largest eigenvalue of −L). ' +
@@ -163,13 +238,13 @@ p('## Explicit smoothing and the stable time step (seed Figures 7-9 and its tabl
   ...table(['mesh', 'uniform: bound', 'cotangent: bound', 'mean edge²', 'cotangent bound / mean edge²'],
     names.map((m) => [m, g(bound(m, 'uniform')), g(bound(m, 'cotangent')), g(edge2(m)), g(bound(m, 'cotangent') / edge2(m))])), '',
   'The seed\'s hand-found "perfect" λ were 0.01, 1e-6 and 5e-7 (read here as bumpy, cow, bunny). Its three meshes have very ' +
-  'different sizes, so no single number could work for all three. Beside the cotangent bounds measured here, the seed\'s ' +
-  `1e-6 is ${g(1e-6 / bound('cow', 'cotangent'), 2)} × the bound of CGAL\'s cow.off and 5e-7 is ` +
-  `${g(5e-7 / (names.includes('bunny00') ? bound('bunny00', 'cotangent') : NaN), 2)} × the bound of bunny00.off: if the seed used ` +
-  'these files with the cotangent Laplacian, its "perfect" values were the largest stable steps, found by trial. Its 0.01 ' +
-  'on bumpy.off is far below the uniform bound (about 1 on every mesh: ' +
-  `${names.map((m) => g(bound(m, 'uniform'))).join(', ')}, since uniform λ is dimensionless) and is not comparable with the ` +
-  `cotangent bound of our generated bumpy sphere (${g(bound('bumpy', 'cotangent'))}), which is another mesh. ` +
+  'different sizes, so no single number could work for all three. CGAL\'s `cow.off` and `bunny00.off` are not the course\'s ' +
+  `files: against them the seed\'s 1e-6 is ${g(1e-6 / bound('cow', 'cotangent'), 2)} × the cotangent bound of cow.off and 5e-7 is ` +
+  `${g(5e-7 / bound('bunny00', 'cotangent'), 2)} × the bound of bunny00.off. On the course\'s own meshes ([below](#the-courses-own-meshes)) ` +
+  `0.01 is ${g(0.01 / COURSE.bumpy.cotangent, 2)} ×, 1e-6 ${g(1e-6 / COURSE.cow.cotangent, 2)} × and 5e-7 ${g(5e-7 / COURSE.bunny.cotangent, 2)} × ` +
+  'the cotangent bound: the bunny\'s value is above it, so it was not a stable explicit cotangent step there. ' +
+  'The uniform bound is about 1 on every mesh (' +
+  `${names.map((m) => g(bound(m, 'uniform'))).join(', ')}, since uniform λ is dimensionless). ` +
   'For the cotangent Laplacian λ has units of length², and the bound is set by the smallest, worst-shaped triangles: ' +
   `${names.map((m) => `${g(bound(m, 'cotangent') / edge2(m))}`).join(', ')} mean edge² here. A scale-free time step ` +
   '(λ in units of mean edge², `--lambda-unit edge2`, or of the bound, `--lambda-unit bound`, or simply `--lambda auto`) ' +
@@ -187,9 +262,10 @@ p('## Explicit smoothing and the stable time step (seed Figures 7-9 and its tabl
   'of the diagonal and the surface turns into spikes and zig-zags (the seed\'s Figures 8-9). With the cotangent ' +
   'Laplacian the bound is set by the few smallest, worst-shaped triangles and the unstable modes live there, so the ' +
   `damage stays local (${names.map((m) => `${g(100 * results[`${m}_explicit_cotangent_large`].colour_range[1] / diagonal(m), 2)}%`).join(', ')}) ` +
-  'and grows only slowly. Below the bound the cotangent step is so small that 20 steps barely move the mesh ' +
-  `(${names.map((m) => `${g(100 * results[`${m}_explicit_cotangent_stable`].colour_range[1] / diagonal(m), 2)}%`).join(', ')}): ` +
-  'explicit cotangent smoothing needs thousands of steps, which is the reason to go implicit.', '');
+  'and grows only slowly. Below the bound the cotangent step is a small fraction of a mean edge² (' +
+  `${names.map((m) => g(0.9 * bound(m, 'cotangent') / edge2(m), 2)).join(', ')}), so 20 steps move the finely sampled meshes little ` +
+  `(${names.map((m) => `${m} ${g(100 * results[`${m}_explicit_cotangent_stable`].colour_range[1] / diagonal(m), 2)}%`).join(', ')}): ` +
+  'explicit cotangent smoothing of a fine mesh needs thousands of steps, which is the reason to go implicit.', '');
 
 p('## Implicit smoothing (seed Figure 10)', '',
   'One backward-Euler step (M − λS) P\' = M P, cotangent Laplacian, at the seed\'s absolute λ = 1, 1e-3, 1e-5; colour = distance moved.', '',
@@ -281,11 +357,13 @@ if (!haveStudy) {
 }
 p('Figures: the Gaussian curvature (angle deficit over the barycentric area, in the clean mesh\'s colour range of ' +
   'Figure 4 above) of the noisy mesh and of the best explicit and implicit results of the study (same noise, scheme, ' +
-  'Laplacian, λ and step count): a second-order quantity, so it makes the remaining noise visible.', '');
+  'Laplacian, λ and step count): a second-order quantity, so it makes the remaining noise visible. Each caption says what was ' +
+  'computed. The angle deficit uses no Laplacian, but the colour bar names the URL\'s one `laplacian` parameter, which also ' +
+  'sets the smoothing\'s: it reads "uniform" on the clean and noisy maps and names the smoothing\'s Laplacian on a denoised one.', '');
 for (const m of names.filter((x) => study(x) || !names.some(study))) {
   p(`**${m}**${study(m) ? '' : ' (no study: fixed settings)'}`, '', ...table(['noise level', 'noisy', 'explicit', 'implicit'], FIGURE_LEVELS.map((level) => [level,
-    img(`${m}_noisy_${level}`, `${m} noisy ${level}`), img(`${m}_denoised_explicit_${level}`, `${m} explicit ${level}`),
-    img(`${m}_denoised_implicit_${level}`, `${m} implicit ${level}`)])), '');
+    cell(`${m}_noisy_${level}`, `${m} noisy ${level}`), cell(`${m}_denoised_explicit_${level}`, `${m} explicit ${level}`),
+    cell(`${m}_denoised_implicit_${level}`, `${m} implicit ${level}`)])), '');
   const settings = FIGURE_LEVELS.map((level) => ['explicit', 'implicit'].map((s) => {
     const a = answer(`${m}_denoised_${s}_${level}`, 'smooth');
     const q = new URLSearchParams(results[`${m}_denoised_${s}_${level}`].query);
@@ -293,6 +371,26 @@ for (const m of names.filter((x) => study(x) || !names.some(study))) {
   }).join('; ')).join('; ');
   p(`Settings (${m}): ${settings}`, '');
 }
+const boxRecon = (k) => reconAt(BOX, k);
+p('## The course\'s own meshes', '',
+  'The course\'s `bumpy.off`, `cow.off` and `bunny.off` are not in the repository. To run everything above on them too:', '',
+  '```sh', 'scripts/report.sh path/to/bumpy.off path/to/cow.off path/to/bunny.off        # figures, tables, this page',
+  'scripts/report.sh --tables-only path/to/bumpy.off path/to/cow.off path/to/bunny.off  # only the measured tables, in build/report/',
+  '```', '',
+  'Each mesh is keyed by its path: `bumpy.off` keeps the key `bumpy`, while the course\'s `cow.off` (in a folder `data`) becomes ' +
+  '`data-cow`, beside CGAL\'s `cow`, with its own rows and figures. The course\'s meshes as measured on ' +
+  `${COURSE.date} with this version (the report run above and \`lapmesh smooth\`), beside the generated bumpy box:`, '',
+  ...table(['', 'course bumpy.off', 'bumpy-box (generated)', 'course cow.off', 'course bunny.off'], [
+    ['vertices', COURSE.bumpy.vertices, vertices(BOX), COURSE.cow.vertices, COURSE.bunny.vertices],
+    ['bounding box', `±${COURSE.bumpy.box} (cube)`, `±${g(diagonal(BOX) / Math.sqrt(12), 3)} (cube)`, '', ''],
+    ['mean edge²', g(COURSE.bumpy.edge2), g(edge2(BOX)), g(COURSE.cow.edge2), g(COURSE.bunny.edge2)],
+    ['explicit bound, uniform', g(COURSE.bumpy.uniform), g(bound(BOX, 'uniform')), g(COURSE.cow.uniform), g(COURSE.bunny.uniform)],
+    ['explicit bound, cotangent', g(COURSE.bumpy.cotangent), g(bound(BOX, 'cotangent')), g(COURSE.cow.cotangent), g(COURSE.bunny.cotangent)],
+    ['cotangent bound / mean edge²', g(COURSE.bumpy.cotangent / COURSE.bumpy.edge2), g(bound(BOX, 'cotangent') / edge2(BOX)),
+      g(COURSE.cow.cotangent / COURSE.cow.edge2), g(COURSE.bunny.cotangent / COURSE.bunny.edge2)],
+    ['seed\'s λ / cotangent bound', g(0.01 / COURSE.bumpy.cotangent, 2), g(0.01 / bound(BOX, 'cotangent'), 2), g(1e-6 / COURSE.cow.cotangent, 2), g(5e-7 / COURSE.bunny.cotangent, 2)],
+    ['reconstruction error / diagonal, k = 5, 10, 30', COURSE.bumpyRecon.map((x) => g(x, 2)).join(', '), [5, 10, 30].map((k) => g(boxRecon(k), 2)).join(', '), '', ''],
+  ]), '', ...COURSE.notes({ g, bound, edge2, vertices, diagonal, results, BOX }), '');
 p('## Figure URLs', '', 'Each image is `lapmesh view` at `http://127.0.0.1:PORT/?QUERY` (parameters: [viewer.md](viewer.md#figures-from-a-script-url-parameters)); the manual colour ranges of the noise figures are those the clean mesh\'s Gaussian curvature figure showed.', '',
   ...table(['image', 'query', 'seconds'], Object.entries(results).map(([name, r]) => [`${name}.png`, `\`${r.query}\``, g(r.seconds, 2)])), '');
 fs.writeFileSync(1, `${out.join('\n')}\n`);

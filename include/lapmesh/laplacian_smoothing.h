@@ -156,9 +156,12 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 /// @brief smooths `tm` by explicit (forward Euler) Laplacian flow, P <- P + lambda L P.
 ///
 /// Stable only for lambda below 2 / mu_max, mu_max the largest eigenvalue of -L on the free
-/// vertices; the bound of the input mesh is computed (Lanczos) and returned in the report,
-/// with `above_stability_bound` set when lambda exceeds it. With the operator rebuilt every
-/// iteration (default) the bound can drift as the mesh changes.
+/// vertices (explicit_stability_bound()). The report's `stability_bound` is that bound of the
+/// input mesh (`stability_bound_exact` true) when lambda exceeds the cheap Gershgorin bound or
+/// `compute_stability_bound(true)` is given; otherwise it is the Gershgorin bound, a lower
+/// bound that already proves lambda stable. `above_stability_bound` is set when lambda exceeds
+/// the bound. To show or reuse the bound itself, call explicit_stability_bound(). With the
+/// operator rebuilt every iteration (default) the bound can drift as the mesh changes.
 ///
 /// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag`
 /// @param tm a triangle mesh; positions are written through the vertex point map
@@ -272,6 +275,10 @@ double time_step(const TriangleMesh& tm, double value, Time_step_unit unit,
   return value;
 }
 
+/// @brief returns the explicit scheme's automatic time step for a stability bound computed
+/// by explicit_stability_bound(): 0.9 of it (for a caller that also needs the bound).
+inline double automatic_explicit_time_step(double stability_bound) { return 0.9 * stability_bound; }
+
 /// @brief returns the automatic time step of `lapmesh smooth --lambda auto` and the viewer:
 /// 0.9 of the stability bound for the explicit scheme (the largest step that stays stable, with
 /// a margin for the operator changing between iterations), one mean edge length squared
@@ -281,8 +288,9 @@ template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::De
 double automatic_time_step(const TriangleMesh& tm, Smoothing_scheme scheme,
                            const NamedParameters& np = CGAL::parameters::default_values())
 {
-  return scheme == Smoothing_scheme::explicit_euler ? time_step(tm, 0.9, Time_step_unit::stability_bound, np)
-                                                    : time_step(tm, 1.0, Time_step_unit::mean_edge_length_squared, np);
+  return scheme == Smoothing_scheme::explicit_euler
+           ? automatic_explicit_time_step(explicit_stability_bound(tm, np))
+           : time_step(tm, 1.0, Time_step_unit::mean_edge_length_squared, np);
 }
 
 } // namespace lapmesh
