@@ -1,6 +1,5 @@
 // lapmesh — Laplace–Beltrami eigenpairs (manifold harmonics) and reconstruction of a mesh,
-// or of any per-vertex signal, from its k smallest eigenvectors (SPEC "Spectrum and
-// reconstruction"; doc/spectral.md).
+// or of any per-vertex signal, from its k smallest eigenvectors (doc/spectral.md).
 //
 //   -S phi = lambda M phi,  (S, M) = (C, diag(A_i)) cotangent, (W, D) uniform,
 //   eigenvalues ascending (lambda_0 ~ 0 once per connected component), phi_i^T M phi_j = delta_ij,
