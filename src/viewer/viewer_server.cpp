@@ -1183,9 +1183,13 @@ struct Server::Impl
     reap_locked();
   }
 
+  /// A connection waiting for (the rest of) a request this long counts as stalled: it may be
+  /// closed to make room. Shorter waits are spared (a request in flight, a loaded machine).
+  static constexpr long long stalled_after_ns = 1'000'000'000;
+
   /// Gives a new connection its thread, within the limits: over a limit, the connection
-  /// (of this address, or any) that has waited longest for a request is closed to make
-  /// room; if every one is being answered, the newcomer gets 503.
+  /// (of this address, or any) that has stalled longest is closed to make room; if none has
+  /// stalled, the newcomer gets 503.
   void admit(int fd, const std::string& address)
   {
     std::lock_guard<std::mutex> g(connections_mutex);
@@ -1193,10 +1197,15 @@ struct Server::Impl
     int total = 0, same = 0;
     Connection *oldest_same = nullptr, *oldest_any = nullptr;
     auto older = [](Connection* a, Connection* b) { return !a || b->phase_since_ns < a->phase_since_ns; };
+    const long long now = Clock::now().time_since_epoch().count();
     for(auto& c : connections) {
       if(c->finished || c->fd < 0 || c->evicted) continue;
+      // A connection its client has closed is about to end (its thread may just not have run
+      // yet on a loaded machine): it does not count.
+      pollfd p{c->fd, POLLRDHUP, 0};
+      if(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR))) continue;
       ++total;
-      const bool idle = c->phase != Connection::Phase::handling;
+      const bool idle = c->phase != Connection::Phase::handling && now - c->phase_since_ns >= stalled_after_ns;
       if(c->address == address) {
         ++same;
         if(idle && older(oldest_same, c.get())) oldest_same = c.get();

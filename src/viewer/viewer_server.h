@@ -39,8 +39,8 @@ struct Server_options
   std::size_t cache_bytes = std::size_t(512) << 20;  ///< eigenbases kept (least recently used out)
 
   // Connections (doc/viewer.md, "Limits"): each has its own thread, within these bounds.
-  int max_connections = 128;             ///< above: the oldest idle connection is closed, else 503
-  int max_connections_per_address = 32;  ///< the same per client address
+  int max_connections = 256;             ///< above: the longest-stalled connection is closed, else 503
+  int max_connections_per_address = 64;  ///< the same per client address
   int request_timeout_ms = 10000;        ///< a request (head and body) must arrive within this
   int io_timeout_ms = 5000;              ///< the longest wait for the socket to be readable/writable
   int keep_alive_ms = 5000;              ///< an idle connection is closed after this
