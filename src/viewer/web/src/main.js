@@ -101,6 +101,30 @@ window.addEventListener('resize', resize);
 /** Coordinates beyond this many loaded radii are not drawn (the renderer stalls on them). */
 const MAX_EXTENT_RADII = 1e4;
 
+/** Above this many layers of surface per pixel (surface area over the area of the framing
+ *  disc) a filled surface takes seconds per frame in a software renderer: draw edges only. */
+const MAX_LAYERS = 64;
+let surfaceTooDeep = false;
+
+/** Surface area of the served triangles over the area of a disc of the given radius. */
+function layersOf(P, T, r) {
+  let area = 0;
+  for (let t = 0; t < T.length; t += 3) {
+    const a = 3 * T[t], b = 3 * T[t + 1], c = 3 * T[t + 2];
+    const ux = P[b] - P[a], uy = P[b + 1] - P[a + 1], uz = P[b + 2] - P[a + 2];
+    const vx = P[c] - P[a], vy = P[c + 1] - P[a + 1], vz = P[c + 2] - P[a + 2];
+    area += 0.5 * Math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx);
+  }
+  return area / (Math.PI * r * r);
+}
+
+/** Shows the filled surface, or only its edges when it is too deep to fill in time. */
+function applyVisibility() {
+  if (!surface) return;
+  surface.visible = state.drawn && !surfaceTooDeep;
+  wire.visible = state.drawn && ($('wireframe').checked || surfaceTooDeep);
+}
+
 /** Non-finite coordinates and the largest distance from the loaded centre, in loaded radii. */
 function extentOf(P) {
   const c = state.center;
@@ -137,7 +161,7 @@ function setGeometry(frame, keepCamera) {
   if (!ext.finite || ext.radii > MAX_EXTENT_RADII) {
     state.drawn = false;
     document.body.dataset.blownUp = '1';
-    if (surface) { surface.visible = false; wire.visible = false; }
+    applyVisibility();
     showWarning(`The geometry ${ext.finite ? `reaches ${ext.radii.toExponential(1)} times the size of the mesh as loaded` : 'has non-finite coordinates'}` +
       ' (did the smoothing exceed its stability bound?): it is not drawn. Reset brings back the mesh as loaded.');
     render();
@@ -163,9 +187,15 @@ function setGeometry(frame, keepCamera) {
     surface.geometry = bufferGeometry;
     wire.geometry = bufferGeometry;
   }
-  surface.visible = true;
-  wire.visible = $('wireframe').checked;
   if (!keepCamera || ext.radii > 10) resetCamera();
+  const layers = layersOf(P, frame.buffers.indices, radius);
+  surfaceTooDeep = layers > MAX_LAYERS;
+  if (surfaceTooDeep) {
+    showWarning(`The surface folds over itself about ${layers.toFixed(0)} times per pixel (noise or an unstable step?): ` +
+      'only its edges are drawn. Reset brings back the mesh as loaded.');
+  }
+  document.body.dataset.edgesOnly = surfaceTooDeep ? '1' : '';
+  applyVisibility();
   render();
 }
 
@@ -460,7 +490,7 @@ function syncRangeFields() { $('clip').disabled = $('range-mode').value !== 'per
 $('range-mode').addEventListener('change', syncRangeFields);
 for (const id of ['quantity', 'colormap', 'range-mode', 'clip', 'range-min', 'range-max'])
   $(id).addEventListener('change', () => guard(loadScalars));
-$('wireframe').addEventListener('change', () => { if (wire) wire.visible = $('wireframe').checked; render(); });
+$('wireframe').addEventListener('change', () => { applyVisibility(); render(); });
 $('shading').addEventListener('change', () => { surfaceMaterial.flatShading = $('shading').value === 'flat'; surfaceMaterial.needsUpdate = true; render(); });
 $('reset-camera').addEventListener('click', () => resetCamera());
 $('screenshot').addEventListener('click', screenshot);
