@@ -15,6 +15,7 @@ struct View_options
   std::vector<std::string> meshes;
   std::string host = "127.0.0.1", assets;
   int port = 0;
+  int cache_mb = 512;
 };
 
 /// The built page: --assets, else share/lapmesh/viewer next to the executable's bin/ (the
@@ -46,6 +47,8 @@ void run(const View_options& o)
   so.host = o.host;
   so.port = o.port;
   so.assets_dir = find_assets(o.assets);
+  if(o.cache_mb < 0 || o.cache_mb > 1 << 20) throw Failure("--cache-mb must be in [0, 1048576]");
+  so.cache_bytes = std::size_t(o.cache_mb) << 20;
   std::string cow;
 #ifdef LAPMESH_CGAL_COW
   cow = LAPMESH_CGAL_COW;
@@ -60,7 +63,7 @@ void run(const View_options& o)
   try {
     port = server.bind();
   } catch(const std::exception& e) {
-    throw Failure(e.what());
+    throw Failure(std::string("view: ") + e.what());
   }
   const bool loopback = o.host == "127.0.0.1" || o.host == "localhost" || o.host == "::1";
   if(!loopback)
@@ -89,6 +92,8 @@ void register_view(CLI::App& app)
   cmd->add_option("MESH", o->meshes, "meshes to offer (.off, .obj, .ply, .stl)");
   cmd->add_option("--port", o->port, "TCP port (0: a free one)")->capture_default_str();
   cmd->add_option("--host", o->host, "address to bind (default loopback; anything else is reachable by others)")
+    ->capture_default_str();
+  cmd->add_option("--cache-mb", o->cache_mb, "memory for eigenbases kept between reconstructions, in MiB")
     ->capture_default_str();
   cmd->add_option("--assets", o->assets, "directory of the built page (default: found next to the executable)");
   cmd->callback([o] { run(*o); });

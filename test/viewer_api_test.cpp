@@ -369,6 +369,18 @@ TEST_F(ViewerApi, ReconstructionIsTheLibrarysAndKIsChecked)
   const auto got = positions("icosphere");
   for(Eigen::Index i = 0; i < R.rows(); ++i)
     for(int a = 0; a < 3; ++a) ASSERT_NEAR(got[std::size_t(3 * i + a)], R(i, a), 1e-8);
+  // A second k on the geometry as loaded reuses that basis (no solve): the library's basis of
+  // 16 pairs truncated to 9.
+  post("/api/meshes/icosphere/reset", json::object());
+  const json again = post("/api/meshes/icosphere/reconstruct", {{"k", 9}, {"laplacian", "cotangent"}, {"area", "mixed"}});
+  EXPECT_TRUE(again["basis_cached"].get<bool>()) << again;
+  EXPECT_EQ(again["basis_size"], basis.size());
+  const Eigen::MatrixXd R9 = basis.reconstruct(P, 9);
+  const auto got9 = positions("icosphere");
+  for(Eigen::Index i = 0; i < R9.rows(); ++i)
+    for(int a = 0; a < 3; ++a) ASSERT_NEAR(got9[std::size_t(3 * i + a)], R9(i, a), 1e-8);
+  EXPECT_GT(again["cache"]["bytes"].get<std::size_t>(), std::size_t(8 * 2562 * 16));
+  EXPECT_EQ(get_json("/api/info")["cache"], again["cache"]);
   // l = 0..3 on a sphere: 16 pairs close the eigenspace; k = 2 splits l = 1 (a warning).
   EXPECT_FALSE(r.contains("warning"));
   post("/api/meshes/icosphere/reset", json::object());

@@ -22,14 +22,24 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include <arpa/inet.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <list>
 #include <map>
 #include <mutex>
 #include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -161,6 +171,21 @@ public:
     throw Http_error(400, "'" + key + "' must be true or false");
   }
   bool has(const std::string& key) const { return m_json.contains(key); }
+  /// The client's id of an operation (echoed in its answer and progress): "" or up to 64 of
+  /// [A-Za-z0-9_-], or a non-negative integer.
+  std::string request_id()
+  {
+    const json* v = take("request_id");
+    if(!v) return "";
+    if(v->is_number_unsigned()) return std::to_string(v->get<unsigned long long>());
+    if(v->is_string()) {
+      const std::string s = v->get<std::string>();
+      if(s.size() <= 64 && s.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-") ==
+                             std::string::npos)
+        return s;
+    }
+    throw Http_error(400, "'request_id' must be up to 64 of A-Z a-z 0-9 _ - or a non-negative integer");
+  }
   const json* raw(const std::string& key) { return take(key); }
   /// After reading every parameter: refuses the ones nobody asked for.
   void finish() const
@@ -221,29 +246,265 @@ private:
   std::string m_data;
 };
 
+// ---- transport ---------------------------------------------------------------------------
+//
+// httplib parses requests and routes them, but its own accept loop cannot stand up to slow
+// or hostile clients (a fixed pool of 8 threads held by half-sent requests, header lines
+// without a total limit, chunked bodies without a size limit, SO_REUSEPORT on the listening
+// socket). So the server accepts connections itself, gives each its own thread (bounded in
+// number, overall and per client address) and hands httplib a stream that enforces a
+// deadline and a byte budget on every request.
+
+/// httplib's request parser and router, driven one request at a time.
+class Http_router : public httplib::Server
+{
+public:
+  using httplib::Server::process_request;
+};
+
+struct Transport_limits
+{
+  int request_ms, io_ms, keep_alive_ms;
+  std::size_t max_head_bytes, max_body_wire_bytes;
+};
+
+/// One accepted connection; its fd stays open until the entry leaves the connection table,
+/// so that another thread may shut it down (eviction, stop) without hitting a reused fd.
+struct Connection
+{
+  enum class Phase { waiting, reading, handling };
+  enum class Limit { none, head, body, time };
+  int fd = -1;
+  std::string address;
+  std::atomic<Phase> phase{Phase::waiting};
+  std::atomic<long long> phase_since_ns{0};
+  Limit limit = Limit::none;    // what stopped the current request, if anything
+  bool must_close = false;      // the request's body was not read: the next bytes are not a request
+  std::atomic<bool> finished{false};
+  bool evicted = false;  // shut down to make room (connections_mutex)
+  std::thread thread;
+
+  void set_phase(Phase p)
+  {
+    phase = p;
+    phase_since_ns = Clock::now().time_since_epoch().count();
+  }
+};
+
+thread_local Connection* current_connection = nullptr;
+
+/// The stream httplib reads requests from and writes answers to. Each request must arrive
+/// within request_ms of its first byte, with a head of at most max_head_bytes and a body
+/// (as sent, chunk framing included) of at most max_body_wire_bytes; every wait for the
+/// socket is bounded by io_ms.
+class Limited_stream final : public httplib::Stream
+{
+public:
+  Limited_stream(Connection& c, const Transport_limits& l) : m_c(c), m_l(l) {}
+
+  /// Before each request: waits up to keep_alive_ms for its first byte; false when the
+  /// client closed the connection or stayed silent.
+  bool begin_request()
+  {
+    m_c.limit = Connection::Limit::none;
+    m_head_done = false;
+    m_head_bytes = m_body_bytes = 0;
+    m_tail = 0;
+    m_c.set_phase(Connection::Phase::waiting);
+    if(m_pos == m_end && !fill(Clock::now() + std::chrono::milliseconds(m_l.keep_alive_ms))) return false;
+    m_c.set_phase(Connection::Phase::reading);
+    m_deadline = Clock::now() + std::chrono::milliseconds(m_l.request_ms);
+    return true;
+  }
+
+  bool is_readable() const override { return m_pos < m_end || wait(POLLIN, m_l.io_ms); }
+  bool is_writable() const override { return wait(POLLOUT, m_l.io_ms); }
+
+  ssize_t read(char* ptr, std::size_t size) override
+  {
+    if(m_c.limit != Connection::Limit::none) return -1;
+    if(m_pos == m_end && !fill(m_deadline)) {
+      m_c.must_close = true;  // a request cut short: what follows is not a request
+      return m_eof ? 0 : -1;
+    }
+    std::size_t n = std::min(size, m_end - m_pos);
+    // Count what httplib consumes: the head up to its blank line, then the body.
+    for(std::size_t i = 0; i < n && !m_head_done; ++i) {
+      m_tail = (m_tail << 8) | std::uint8_t(m_buf[m_pos + i]);
+      if(++m_head_bytes > m_l.max_head_bytes) return stop(Connection::Limit::head);
+      if((m_tail & 0xffffffffu) == 0x0d0a0d0au) {
+        m_head_done = true;
+        n = i + 1;  // hand over the head alone; the body is counted from the next read
+      }
+    }
+    std::memcpy(ptr, m_buf + m_pos, n);
+    m_pos += n;
+    return ssize_t(n);
+  }
+
+  ssize_t write(const char* ptr, std::size_t size) override
+  {
+    if(!wait(POLLOUT, m_l.io_ms)) return -1;
+    const ssize_t n = ::send(m_c.fd, ptr, size, MSG_NOSIGNAL);
+    return n < 0 ? -1 : n;
+  }
+
+  void get_remote_ip_and_port(std::string& ip, int& port) const override { address_of(true, ip, port); }
+  void get_local_ip_and_port(std::string& ip, int& port) const override { address_of(false, ip, port); }
+  int socket() const override { return m_c.fd; }
+
+private:
+  ssize_t stop(Connection::Limit why)
+  {
+    m_c.limit = why;
+    m_c.must_close = true;
+    return -1;
+  }
+
+  bool wait(short events, int ms) const
+  {
+    pollfd p{m_c.fd, events, 0};
+    int r;
+    do r = ::poll(&p, 1, ms);
+    while(r < 0 && errno == EINTR);
+    return r > 0;
+  }
+
+  /// Refills the buffer, waiting until `deadline` at most (in steps of io_ms).
+  bool fill(Clock::time_point deadline)
+  {
+    m_pos = m_end = 0;
+    for(;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+      if(left <= 0) {
+        if(m_c.phase != Connection::Phase::waiting) stop(Connection::Limit::time);
+        return false;
+      }
+      if(!wait(POLLIN, int(std::min<long long>(left, m_l.io_ms)))) {
+        if(left <= m_l.io_ms) continue;  // the deadline check above ends it
+        if(m_c.phase != Connection::Phase::waiting) stop(Connection::Limit::time);
+        return false;
+      }
+      const ssize_t n = ::recv(m_c.fd, m_buf, sizeof m_buf, 0);
+      if(n > 0) {
+        m_end = std::size_t(n);
+        if(m_head_done) {
+          m_body_bytes += m_end;
+          if(m_body_bytes > m_l.max_body_wire_bytes) {
+            m_end = 0;
+            stop(Connection::Limit::body);
+            return false;
+          }
+        }
+        return true;
+      }
+      if(n == 0) m_eof = true;
+      if(n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+      return false;
+    }
+  }
+
+  void address_of(bool peer, std::string& ip, int& port) const
+  {
+    sockaddr_storage a{};
+    socklen_t len = sizeof a;
+    ip.clear();
+    port = 0;
+    if((peer ? ::getpeername(m_c.fd, (sockaddr*)&a, &len) : ::getsockname(m_c.fd, (sockaddr*)&a, &len)) != 0) return;
+    char host[NI_MAXHOST], serv[NI_MAXSERV];
+    if(::getnameinfo((sockaddr*)&a, len, host, sizeof host, serv, sizeof serv, NI_NUMERICHOST | NI_NUMERICSERV) == 0) {
+      ip = host;
+      port = std::atoi(serv);
+    }
+  }
+
+  Connection& m_c;
+  const Transport_limits& m_l;
+  char m_buf[4096];
+  std::size_t m_pos = 0, m_end = 0;
+  bool m_eof = false, m_head_done = false;
+  std::size_t m_head_bytes = 0, m_body_bytes = 0;
+  std::uint64_t m_tail = 0;
+  Clock::time_point m_deadline;
+};
+
 // ---- per-mesh state --------------------------------------------------------------------
+
+/// Many readers or one writer, taken without waiting: reads never exclude each other, and a
+/// mesh busy with an operation answers 409 instead of queueing requests behind it.
+class Busy_lock
+{
+public:
+  bool try_read()
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    if(m_writer) return false;
+    ++m_readers;
+    return true;
+  }
+  void end_read()
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    --m_readers;
+  }
+  bool try_write()
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    if(m_writer || m_readers > 0) return false;
+    m_writer = true;
+    return true;
+  }
+  void end_write()
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    m_writer = false;
+  }
+
+private:
+  std::mutex m_mutex;
+  int m_readers = 0;
+  bool m_writer = false;
+};
+
+/// Holds a Busy_lock taken by try_read() (write = false) or try_write() (write = true).
+class Busy_guard
+{
+public:
+  Busy_guard(Busy_lock& l, bool write) : m_lock(&l), m_write(write) {}
+  Busy_guard(Busy_guard&& o) noexcept : m_lock(std::exchange(o.m_lock, nullptr)), m_write(o.m_write) {}
+  Busy_guard(const Busy_guard&) = delete;
+  Busy_guard& operator=(const Busy_guard&) = delete;
+  ~Busy_guard()
+  {
+    if(m_lock) m_write ? m_lock->end_write() : m_lock->end_read();
+  }
+
+private:
+  Busy_lock* m_lock;
+  bool m_write;
+};
 
 struct Mesh_state
 {
   explicit Mesh_state(Mesh_source s) : source(std::move(s)) {}
   const Mesh_source source;
 
-  std::mutex mutex;  // guards everything up to the progress block
-  bool loaded = false;
+  std::mutex load_mutex;       // the first load (blocking: it happens once)
+  std::atomic<bool> loaded{false};
+  Busy_lock lock;              // guards everything up to the progress block once loaded
   Mesh original, current;
   std::vector<std::array<std::size_t, 3>> triangles;
-  long long version = 0;  // bumped at every change of the geometry
+  long long version = 0;       // bumped at every change of the geometry (and by reset)
+  long long geometry = 0;      // which geometry `current` is: 0 as loaded, else unique to one change
   std::map<std::string, std::vector<double>> scalars;
   json scalar_info = json::object();  // what produced the scalars
-  std::optional<lapmesh::Spectral_basis> basis;
-  long long basis_version = -1;
 
-  // Progress of the running operation: read without the mutex.
+  // Progress of the running operation: read without the lock.
   std::atomic<bool> running{false}, cancel{false};
   std::atomic<long long> done{0}, total{0};
   std::atomic<long long> started_ns{0};
-  std::mutex progress_mutex;  // guards operation, stage
-  std::string operation, stage;
+  std::mutex progress_mutex;  // guards operation, stage, request_id
+  std::string operation, stage, request_id;
 
   void set_stage(const std::string& s)
   {
@@ -256,12 +517,13 @@ struct Mesh_state
 class Running
 {
 public:
-  Running(Mesh_state& s, const std::string& op) : m_s(s)
+  Running(Mesh_state& s, const std::string& op, const std::string& request_id) : m_s(s)
   {
     {
       std::lock_guard<std::mutex> g(s.progress_mutex);
       s.operation = op;
       s.stage = "";
+      s.request_id = request_id;
     }
     s.done = 0;
     s.total = 0;
@@ -275,6 +537,84 @@ public:
 
 private:
   Mesh_state& m_s;
+};
+
+/// Eigenbases by (mesh, geometry, Laplacian, vertex area), least recently used first out,
+/// within a byte budget. A basis of m pairs serves every k <= m on the geometry it was
+/// computed from.
+class Basis_cache
+{
+public:
+  explicit Basis_cache(std::size_t budget) : m_budget(budget) {}
+
+  std::shared_ptr<const lapmesh::Spectral_basis> find(const std::string& mesh, long long geometry, lapmesh::Laplacian L,
+                                                      lapmesh::Vertex_area A, Eigen::Index k)
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    for(auto it = m_lru.begin(); it != m_lru.end(); ++it) {
+      if(it->mesh == mesh && it->geometry == geometry && it->L == L && it->A == A && it->basis->size() >= k) {
+        m_lru.splice(m_lru.begin(), m_lru, it);
+        return m_lru.front().basis;
+      }
+    }
+    return nullptr;
+  }
+
+  void insert(const std::string& mesh, long long geometry, std::shared_ptr<const lapmesh::Spectral_basis> basis)
+  {
+    const std::size_t bytes = bytes_of(*basis);
+    std::lock_guard<std::mutex> g(m_mutex);
+    m_lru.remove_if([&](const Entry& e) {
+      const bool same = e.mesh == mesh && e.geometry == geometry && e.L == basis->laplacian() && e.A == basis->vertex_area();
+      if(same) m_bytes -= e.bytes;
+      return same;
+    });
+    if(bytes > m_budget) return;  // used for this request only
+    while(!m_lru.empty() && m_bytes + bytes > m_budget) {
+      m_bytes -= m_lru.back().bytes;
+      m_lru.pop_back();
+    }
+    m_lru.push_front({mesh, geometry, basis->laplacian(), basis->vertex_area(), basis, bytes});
+    m_bytes += bytes;
+  }
+
+  /// Drops the bases of `mesh` on geometries other than `keep_a` and `keep_b`: those
+  /// geometries cannot come back.
+  void forget(const std::string& mesh, long long keep_a, long long keep_b)
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    m_lru.remove_if([&](const Entry& e) {
+      const bool gone = e.mesh == mesh && e.geometry != keep_a && e.geometry != keep_b;
+      if(gone) m_bytes -= e.bytes;
+      return gone;
+    });
+  }
+
+  json stats()
+  {
+    std::lock_guard<std::mutex> g(m_mutex);
+    return {{"bytes", m_bytes}, {"budget_bytes", m_budget}, {"entries", m_lru.size()}};
+  }
+
+  static std::size_t bytes_of(const lapmesh::Spectral_basis& b)
+  {
+    const std::size_t n = std::size_t(b.num_vertices()), m = std::size_t(b.size());
+    return sizeof(double) * (n * m + m + n);  // eigenvectors, eigenvalues, mass
+  }
+
+private:
+  struct Entry
+  {
+    std::string mesh;
+    long long geometry;
+    lapmesh::Laplacian L;
+    lapmesh::Vertex_area A;
+    std::shared_ptr<const lapmesh::Spectral_basis> basis;
+    std::size_t bytes;
+  };
+  std::mutex m_mutex;
+  std::list<Entry> m_lru;  // most recently used first
+  std::size_t m_bytes = 0, m_budget;
 };
 
 std::string sanitize_id(const std::string& s)
@@ -353,12 +693,24 @@ struct Server::Impl
   std::vector<std::unique_ptr<Mesh_state>> meshes;
   std::map<std::string, Mesh_state*> by_id;
   std::map<std::string, Static_file> files;  // URL path -> file, fixed at start-up
-  httplib::Server http;
-  std::thread thread;
-  bool bound = false;
+  Basis_cache bases;
+  std::atomic<long long> last_geometry{0};  // geometry ids handed out
 
-  Impl(std::vector<Mesh_source> sources, Server_options o) : options(std::move(o))
+  // Transport (see "transport" above).
+  Http_router http;
+  Transport_limits limits;
+  int listen_fd = -1;
+  std::atomic<bool> stopping{false}, accepting{false};
+  std::thread accept_thread;
+  std::mutex connections_mutex;
+  std::list<std::unique_ptr<Connection>> connections;
+  static constexpr int max_requests_per_connection = 1000;
+
+  Impl(std::vector<Mesh_source> sources, Server_options o) : options(std::move(o)), bases(options.cache_bytes)
   {
+    limits = {options.request_timeout_ms, options.io_timeout_ms, options.keep_alive_ms, options.max_header_bytes,
+              // the body as sent: chunk framing of reasonably sized chunks fits in the margin
+              2 * options.max_body_bytes + 4096};
     for(auto& s : sources) {
       if(s.id.empty() || s.id != sanitize_id(s.id) || by_id.count(s.id))
         throw std::invalid_argument("invalid or duplicate mesh id '" + s.id + "'");
@@ -393,8 +745,11 @@ struct Server::Impl
     return *it->second;
   }
 
-  void load(Mesh_state& s)  // with s.mutex held
+  /// Loads (or generates) the mesh on first use; concurrent first users wait for one load.
+  void load(Mesh_state& s)
   {
+    if(s.loaded) return;
+    std::lock_guard<std::mutex> g(s.load_mutex);
     if(s.loaded) return;
     Mesh mesh;
     const Mesh_source& src = s.source;
@@ -414,18 +769,28 @@ struct Server::Impl
     s.original = mesh;
     s.current = std::move(mesh);
     s.triangles = lapmesh::io::mesh_arrays(s.current).second;
-    s.loaded = true;
     s.version = 1;
+    s.geometry = 0;
+    s.loaded = true;
   }
 
-  /// The mesh's lock, taken without waiting: a busy mesh answers 409.
-  std::unique_lock<std::mutex> lock(Mesh_state& s)
+  [[noreturn]] static void busy(Mesh_state& s, const char* what)
   {
-    std::unique_lock<std::mutex> l(s.mutex, std::try_to_lock);
-    if(!l)
-      throw Http_error(409, "mesh '" + s.source.id + "' is busy with another operation (GET .../progress, POST .../cancel)");
+    throw Http_error(409, "mesh '" + s.source.id + "' is busy " + what + " (GET .../progress, POST .../cancel)");
+  }
+  /// For an operation: exclusive, taken without waiting (a busy mesh answers 409).
+  Busy_guard write_lock(Mesh_state& s)
+  {
     load(s);
-    return l;
+    if(!s.lock.try_write()) busy(s, "with another operation or a read in progress");
+    return Busy_guard(s.lock, true);
+  }
+  /// For a read: shared with every other read; 409 only while an operation runs.
+  Busy_guard read_lock(Mesh_state& s)
+  {
+    load(s);
+    if(!s.lock.try_read()) busy(s, "with an operation");
+    return Busy_guard(s.lock, false);
   }
 
   lapmesh::Vertex_vectors positions(const Mesh_state& s) const { return lapmesh::io::mesh_arrays(s.current).first; }
@@ -442,6 +807,8 @@ struct Server::Impl
   void geometry_changed(Mesh_state& s, const std::string& what)
   {
     ++s.version;
+    s.geometry = ++last_geometry;
+    bases.forget(s.source.id, 0, s.geometry);  // the previous geometry is gone unless it was the loaded one
     const lapmesh::Vertex_vectors P = positions(s), P0 = lapmesh::io::mesh_arrays(s.original).first;
     const Eigen::VectorXd d = (P - P0).rowwise().norm();
     s.scalars.clear();
@@ -465,6 +832,8 @@ struct Server::Impl
     p.finish();
     s.current = s.original;
     ++s.version;
+    s.geometry = 0;
+    bases.forget(s.source.id, 0, 0);
     s.scalars.clear();
     s.scalar_info = json::object();
     return json::object();
@@ -497,29 +866,29 @@ struct Server::Impl
     p.finish();
     const auto L = *lapmesh::parse_laplacian(lap);
     const auto A = *lapmesh::parse_vertex_area(area);
-    bool cached = s.basis && s.basis_version == s.version && s.basis->laplacian() == L && s.basis->vertex_area() == A &&
-                  s.basis->size() >= k;
+    std::shared_ptr<const lapmesh::Spectral_basis> basis = bases.find(s.source.id, s.geometry, L, A, k);
+    const bool cached = basis != nullptr;
     if(!cached) {
-      s.basis.reset();
       s.set_stage("eigenpairs");
       auto progress = [&s](const lapmesh::Spectral_progress& pr) {
         s.done = pr.operations;
         s.set_stage(pr.stage);
         if(s.cancel) throw Cancelled{};
       };
-      s.basis = lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-        s.current, k, LP::spectral_progress(progress, LP::vertex_area(A, LP::laplacian(L))));
-      s.basis_version = s.version;
+      basis = std::make_shared<const lapmesh::Spectral_basis>(lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
+        s.current, k, LP::spectral_progress(progress, LP::vertex_area(A, LP::laplacian(L)))));
+      bases.insert(s.source.id, s.geometry, basis);
     }
-    const Eigen::MatrixXd R = s.basis->reconstruct(positions(s), k);
-    const bool split = s.basis->splits_eigenspace(k);
-    json out = {{"k", k}, {"laplacian", lap}, {"area", area}, {"basis_size", s.basis->size()}, {"basis_cached", cached},
-                {"eigenvalue_k_minus_1", s.basis->eigenvalues()[k - 1]}};
+    const Eigen::MatrixXd R = basis->reconstruct(positions(s), k);
+    const bool split = basis->splits_eigenspace(k);
+    json out = {{"k", k}, {"laplacian", lap}, {"area", area}, {"basis_size", basis->size()}, {"basis_cached", cached},
+                {"eigenvalue_k_minus_1", basis->eigenvalues()[k - 1]}};
     if(split)
       out["warning"] = "lambda_" + std::to_string(k - 1) + " and lambda_" + std::to_string(k) +
                        " agree to 1e-8 relative: the reconstruction depends on the basis chosen inside that eigenspace";
     set_positions(s, R);
     geometry_changed(s, "reconstruct");
+    out["cache"] = bases.stats();
     return out;
   }
 
@@ -605,8 +974,8 @@ struct Server::Impl
   {
     json j = {{"id", s.source.id}, {"label", s.source.label},
               {"kind", s.source.kind == Mesh_source::Kind::file ? "file" : "builtin"}};
-    std::unique_lock<std::mutex> l(s.mutex, std::try_to_lock);
-    if(l && s.loaded) {
+    if(s.loaded && s.lock.try_read()) {
+      Busy_guard l(s.lock, false);
       j["vertices"] = num_vertices(s.current);
       j["faces"] = num_faces(s.current);
     }
@@ -719,7 +1088,9 @@ struct Server::Impl
       std::lock_guard<std::mutex> g(s.progress_mutex);
       j["operation"] = s.operation;
       j["stage"] = s.stage;
+      j["request_id"] = s.request_id;
     }
+    j["mesh"] = s.source.id;
     if(s.running) j["elapsed_ms"] = ms_since(Clock::time_point(Clock::duration(s.started_ns.load())));
     j["cancel_requested"] = s.cancel.load();
     return j;
@@ -743,6 +1114,8 @@ struct Server::Impl
   template <typename F>
   static void guarded(httplib::Response& res, F&& f)
   {
+    // From here on the connection is being answered: it is not closed to make room for others.
+    if(current_connection) current_connection->set_phase(Connection::Phase::handling);
     try {
       f();
     } catch(const Http_error& e) {
@@ -766,17 +1139,278 @@ struct Server::Impl
     }
   }
 
+  // ---- connections ----
+
+  void accept_loop()
+  {
+    accepting = true;
+    while(!stopping) {
+      pollfd p{listen_fd, POLLIN, 0};
+      const int r = ::poll(&p, 1, 100);  // wakes up to see `stopping`
+      if(r <= 0) {
+        reap();
+        continue;
+      }
+      sockaddr_storage a{};
+      socklen_t len = sizeof a;
+      const int fd = ::accept4(listen_fd, (sockaddr*)&a, &len, SOCK_CLOEXEC);
+      if(fd < 0) {
+        if(errno == EMFILE || errno == ENFILE) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        continue;
+      }
+      char host[NI_MAXHOST] = "?";
+      ::getnameinfo((sockaddr*)&a, len, host, sizeof host, nullptr, 0, NI_NUMERICHOST);
+      admit(fd, host);
+    }
+    accepting = false;
+  }
+
+  /// Joins the threads of finished connections (connections_mutex held).
+  void reap_locked()
+  {
+    for(auto it = connections.begin(); it != connections.end();) {
+      if((*it)->finished) {
+        if((*it)->thread.joinable()) (*it)->thread.join();
+        it = connections.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  void reap()
+  {
+    std::lock_guard<std::mutex> g(connections_mutex);
+    reap_locked();
+  }
+
+  /// A connection waiting for (the rest of) a request this long counts as stalled: it may be
+  /// closed to make room. Shorter waits are spared (a request in flight, a loaded machine).
+  static constexpr long long stalled_after_ns = 1'000'000'000;
+
+  /// Gives a new connection its thread, within the limits: over a limit, the connection
+  /// (of this address, or any) that has stalled longest is closed to make room; if none has
+  /// stalled, the newcomer gets 503.
+  void admit(int fd, const std::string& address)
+  {
+    std::lock_guard<std::mutex> g(connections_mutex);
+    reap_locked();
+    int total = 0, same = 0;
+    Connection *oldest_same = nullptr, *oldest_any = nullptr;
+    auto older = [](Connection* a, Connection* b) { return !a || b->phase_since_ns < a->phase_since_ns; };
+    const long long now = Clock::now().time_since_epoch().count();
+    for(auto& c : connections) {
+      if(c->finished || c->fd < 0 || c->evicted) continue;
+      // A connection its client has closed is about to end (its thread may just not have run
+      // yet on a loaded machine): it does not count.
+      pollfd p{c->fd, POLLRDHUP, 0};
+      if(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR))) continue;
+      ++total;
+      const bool idle = c->phase != Connection::Phase::handling && now - c->phase_since_ns >= stalled_after_ns;
+      if(c->address == address) {
+        ++same;
+        if(idle && older(oldest_same, c.get())) oldest_same = c.get();
+      }
+      if(idle && older(oldest_any, c.get())) oldest_any = c.get();
+    }
+    Connection* victim = nullptr;
+    bool refuse = false;
+    if(same >= options.max_connections_per_address) {
+      victim = oldest_same;
+      refuse = !victim;
+    } else if(total >= options.max_connections) {
+      victim = oldest_any;
+      refuse = !victim;
+    }
+    if(refuse) {
+      static const std::string body = R"({"error": "too many connections"})";
+      const std::string answer = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
+                                 "Connection: close\r\nContent-Length: " +
+                                 std::to_string(body.size()) + "\r\n\r\n" + body;
+      [[maybe_unused]] const ssize_t n = ::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      ::close(fd);
+      return;
+    }
+    if(victim) {
+      victim->evicted = true;
+      ::shutdown(victim->fd, SHUT_RDWR);  // its thread sees end of file and finishes
+    }
+    auto c = std::make_unique<Connection>();
+    c->fd = fd;
+    c->address = address;
+    c->set_phase(Connection::Phase::waiting);
+    Connection* raw = c.get();
+    connections.push_back(std::move(c));
+    raw->thread = std::thread([this, raw] {
+      serve(*raw);
+      raw->finished = true;
+    });
+  }
+
+  void serve(Connection& c)
+  {
+    current_connection = &c;
+    Limited_stream stream(c, limits);
+    for(int i = 0; i < max_requests_per_connection && !stopping; ++i) {
+      if(!stream.begin_request()) break;
+      bool closed = false;
+      const bool ok = http.process_request(stream, i + 1 == max_requests_per_connection, closed, nullptr);
+      if(!ok && c.limit != Connection::Limit::none) {
+        // httplib gives up without an answer when the request line itself is cut short.
+        const int status = c.limit == Connection::Limit::head ? 431 : c.limit == Connection::Limit::body ? 413 : 408;
+        const std::string body = R"({"error": "request )" +
+                                 std::string(status == 431 ? "header too large" : status == 413 ? "body too large" : "timed out") +
+                                 "\"}";
+        const std::string answer = "HTTP/1.1 " + std::to_string(status) +
+                                   " Refused\r\nContent-Type: application/json\r\nConnection: close\r\nContent-Length: " +
+                                   std::to_string(body.size()) + "\r\n\r\n" + body;
+        stream.write(answer.data(), answer.size());
+      }
+      if(!ok || closed || c.must_close) break;
+    }
+    if(c.must_close) drain(c.fd);
+    {
+      std::lock_guard<std::mutex> g(connections_mutex);
+      ::close(c.fd);  // under the lock: nobody shuts down this number once it may be reused
+      c.fd = -1;
+    }
+    current_connection = nullptr;
+  }
+
+  /// Before closing a connection whose request was not read to its end: stop sending, then
+  /// read (and drop) what the client still sends for a short, bounded while, so that the
+  /// answer is not lost to a reset.
+  void drain(int fd)
+  {
+    ::shutdown(fd, SHUT_WR);
+    char buf[16384];
+    std::size_t total = 0;
+    const auto until = Clock::now() + std::chrono::milliseconds(500);
+    while(total < (std::size_t(4) << 20) && Clock::now() < until) {
+      pollfd p{fd, POLLIN, 0};
+      if(::poll(&p, 1, 100) <= 0) continue;
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if(n <= 0) break;
+      total += std::size_t(n);
+    }
+  }
+
+  void stop()
+  {
+    stopping = true;
+    if(accept_thread.joinable()) accept_thread.join();
+    for(int i = 0; i < 50 && accepting; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if(listen_fd >= 0) {
+      ::close(listen_fd);
+      listen_fd = -1;
+    }
+    for(auto& s : meshes) s->cancel = true;
+    {
+      std::lock_guard<std::mutex> g(connections_mutex);
+      for(auto& c : connections)
+        if(c->fd >= 0) ::shutdown(c->fd, SHUT_RDWR);
+    }
+    // Connection threads only take connections_mutex briefly: join outside it.
+    std::list<std::unique_ptr<Connection>> all;
+    {
+      std::lock_guard<std::mutex> g(connections_mutex);
+      all.swap(connections);
+    }
+    for(auto& c : all)
+      if(c->thread.joinable()) c->thread.join();
+  }
+
+  static bool has_body(const httplib::Request& req)
+  {
+    return req.has_header("Transfer-Encoding") ||
+           (req.has_header("Content-Length") && req.get_header_value("Content-Length") != "0");
+  }
+
+  /// The methods a path answers to ("" for an unknown /api path: the handlers say 404).
+  static std::string allowed_methods(const std::string& path)
+  {
+    static const std::regex mesh_route(R"(/api/meshes/[^/]*/([^/]*))");
+    std::smatch m;
+    if(std::regex_match(path, m, mesh_route)) {
+      static const std::set<std::string> reads = {"geometry", "scalars", "download", "progress"};
+      static const std::set<std::string> ops = {"reset", "curvature", "reconstruct", "smooth", "noise", "cancel"};
+      return reads.count(m[1]) ? "GET, HEAD" : ops.count(m[1]) ? "POST" : "";
+    }
+    if(path == "/api/info" || path == "/api/meshes" || path == "/api/colormaps") return "GET, HEAD";
+    return path.rfind("/api/", 0) == 0 ? "" : "GET, HEAD";
+  }
+
+  /// Refuses, before its body is read, a request no handler must see: a method the route
+  /// does not take (405 with Allow), a declared body above the limit, a compressed body (its
+  /// inflated size is unknown), a transfer coding other than chunked, byte ranges.
+  std::optional<std::pair<int, std::string>> screen(const httplib::Request& req, httplib::Response& res)
+  {
+    const std::string allow = allowed_methods(req.path);
+    bool known = false;
+    for(std::size_t at = 0; at < allow.size();) {
+      const std::size_t end = std::min(allow.find(", ", at), allow.size());
+      known = known || allow.compare(at, end - at, req.method) == 0;
+      at = end + 2;
+    }
+    if(req.method == "OPTIONS" && !allow.empty()) {
+      res.set_header("Allow", allow + ", OPTIONS");
+      return std::make_pair(204, std::string());
+    }
+    if(allow.empty() && req.method != "GET" && req.method != "POST")
+      return std::make_pair(404, "not found: " + req.path.substr(0, 80));
+    if(!allow.empty() && !known) {
+      res.set_header("Allow", allow);
+      return std::make_pair(405, "method " + req.method.substr(0, 16) + " not allowed on " + req.path.substr(0, 80) +
+                                   " (allowed: " + allow + ")");
+    }
+    if(req.has_header("Content-Encoding") && req.get_header_value("Content-Encoding") != "identity")
+      return std::make_pair(415, std::string("compressed request bodies are not accepted"));
+    if(req.has_header("Transfer-Encoding")) {
+      if(req.get_header_value("Transfer-Encoding") != "chunked" || req.has_header("Content-Length"))
+        return std::make_pair(400, std::string("only 'Transfer-Encoding: chunked' without Content-Length is accepted"));
+    }
+    if(req.has_header("Content-Length")) {
+      const std::string v = req.get_header_value("Content-Length");
+      if(v.empty() || v.size() > 18 || v.find_first_not_of("0123456789") != std::string::npos ||
+         req.get_header_value_count("Content-Length") != 1)
+        return std::make_pair(400, std::string("invalid Content-Length"));
+      if(std::stoull(v) > options.max_body_bytes)
+        return std::make_pair(413, "request body too large (limit " + std::to_string(options.max_body_bytes) + " bytes)");
+    }
+    if(req.has_header("Range")) return std::make_pair(416, std::string("byte ranges are not served"));
+    return std::nullopt;
+  }
+
   void routes()
   {
     http.set_payload_max_length(options.max_body_bytes);
-    http.set_read_timeout(10, 0);
-    http.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+    http.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
       if(!res.body.empty()) return;
-      const std::string what = res.status == 404   ? "not found: " + req.path.substr(0, 80)
-                               : res.status == 413 ? "request body too large"
-                               : res.status == 400 ? "bad request"
-                                                   : "HTTP " + std::to_string(res.status);
+      // A request the stream cut short: say which limit it hit.
+      const Connection::Limit limit = current_connection ? current_connection->limit : Connection::Limit::none;
+      if(limit == Connection::Limit::head) res.status = 431;
+      if(limit == Connection::Limit::body) res.status = 413;
+      if(limit == Connection::Limit::time) res.status = 408;
+      const std::string what =
+        res.status == 404   ? "not found: " + req.path.substr(0, 80)
+        : res.status == 413 ? "request body too large (limit " + std::to_string(options.max_body_bytes) + " bytes)"
+        : res.status == 431 ? "request header too large (limit " + std::to_string(options.max_header_bytes) + " bytes)"
+        : res.status == 408 ? "request not received within " + std::to_string(options.request_timeout_ms) + " ms"
+        : res.status == 400 ? "bad request"
+                            : "HTTP " + std::to_string(res.status);
       send_error(res, res.status, what);
+    });
+    // Before the body is read: methods, declared sizes and encodings.
+    http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      std::optional<std::pair<int, std::string>> refusal = screen(req, res);
+      if(!refusal) return httplib::Server::HandlerResponse::Unhandled;
+      // The body (if any) stays unread: the connection cannot carry another request.
+      if(current_connection && has_body(req)) current_connection->must_close = true;
+      if(refusal->first == 204) {
+        res.status = 204;
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      send_error(res, refusal->first, refusal->second);
+      return httplib::Server::HandlerResponse::Handled;
     });
     http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
       guarded(res, [&] { std::rethrow_exception(ep); });
@@ -790,7 +1424,12 @@ struct Server::Impl
                          {{"max_body_bytes", options.max_body_bytes},
                           {"max_k", options.max_k},
                           {"max_iterations", options.max_iterations},
-                          {"max_vertices", options.max_vertices}}},
+                          {"max_vertices", options.max_vertices},
+                          {"max_header_bytes", options.max_header_bytes},
+                          {"request_timeout_ms", options.request_timeout_ms},
+                          {"max_connections", options.max_connections},
+                          {"max_connections_per_address", options.max_connections_per_address}}},
+                        {"cache", bases.stats()},
                         {"quantities", quantity_names},
                         {"colormaps", {"jet", "viridis", "coolwarm", "gray"}}});
       });
@@ -830,7 +1469,7 @@ struct Server::Impl
         }
         if(action != "geometry" && action != "scalars" && action != "download")
           throw Http_error(404, "unknown resource '" + sanitize_id(action) + "' (geometry, scalars, download, progress)");
-        auto l = lock(s);
+        auto l = read_lock(s);
         if(action == "geometry") {
           res.set_content(get_geometry(s, p), "application/octet-stream");
         } else if(action == "scalars") {
@@ -850,11 +1489,18 @@ struct Server::Impl
         Mesh_state& s = find(req.matches[1]);
         const std::string action = req.matches[2];
         Params p = Params::from_body(req.body);
+        const std::string request_id = p.request_id();
         if(action == "cancel") {
           p.finish();
-          const bool running = s.running;
+          // With a request id, only that operation is cancelled (not one started since).
+          std::string running_id;
+          {
+            std::lock_guard<std::mutex> g(s.progress_mutex);
+            running_id = s.request_id;
+          }
+          const bool running = s.running && (request_id.empty() || request_id == running_id);
           if(running) s.cancel = true;
-          return send_json(res, {{"cancelling", running}});
+          return send_json(res, {{"cancelling", running}, {"mesh", s.source.id}, {"request_id", running_id}});
         }
         using Op = json (Impl::*)(Mesh_state&, Params&);
         static const std::map<std::string, Op> ops = {{"reset", &Impl::op_reset},
@@ -866,13 +1512,16 @@ struct Server::Impl
         if(op == ops.end())
           throw Http_error(404, "unknown operation '" + sanitize_id(action) +
                                   "' (reset, curvature, reconstruct, smooth, noise, cancel)");
-        auto l = lock(s);
-        Running running(s, action);
+        auto l = write_lock(s);
+        Running running(s, action, request_id);
         const auto t0 = Clock::now();
         json out = (this->*(op->second))(s, p);
         out["elapsed_ms"] = ms_since(t0);
         out["operation"] = action;
+        out["mesh"] = s.source.id;
+        out["request_id"] = request_id;
         out["version"] = s.version;
+        out["geometry"] = s.geometry;
         out["vertices"] = num_vertices(s.current);
         out["scalars"] = json::array();
         for(const auto& kv : s.scalars) out["scalars"].push_back(kv.first);
@@ -915,7 +1564,6 @@ Server::~Server() { stop(); }
 void Server::preload()
 {
   for(auto& s : m->meshes) {
-    std::lock_guard<std::mutex> l(s->mutex);
     try {
       m->load(*s);
     } catch(const Http_error& e) {
@@ -928,36 +1576,67 @@ void Server::preload()
 
 int Server::bind()
 {
-  int port = m->options.port;
-  if(port == 0) {
-    port = m->http.bind_to_any_port(m->options.host);
-    if(port < 0) throw std::runtime_error("cannot bind to " + m->options.host);
-  } else if(!m->http.bind_to_port(m->options.host, port)) {
-    throw std::runtime_error("cannot bind to " + m->options.host + ":" + std::to_string(port) +
-                             " (in use? try another --port, or none for a free one)");
+  if(m->listen_fd >= 0) throw std::runtime_error("the server is bound already");
+  const std::string& host = m->options.host;
+  const std::string where = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" +
+                            std::to_string(m->options.port);
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
+  addrinfo* found = nullptr;
+  if(const int rc = ::getaddrinfo(host.c_str(), std::to_string(m->options.port).c_str(), &hints, &found); rc != 0)
+    throw std::runtime_error("cannot bind to " + where + ": " + ::gai_strerror(rc));
+  int error = 0;
+  for(addrinfo* a = found; a && m->listen_fd < 0; a = a->ai_next) {
+    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
+    if(fd < 0) {
+      error = errno;
+      continue;
+    }
+    // SO_REUSEADDR only (a restart may bind over connections in TIME_WAIT); never
+    // SO_REUSEPORT, which would let a second server share this port and its requests.
+    const int yes = 1;
+    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+    if(::bind(fd, a->ai_addr, a->ai_addrlen) == 0 && ::listen(fd, 64) == 0) {
+      m->listen_fd = fd;
+    } else {
+      error = errno;
+      ::close(fd);
+    }
   }
-  m->bound = true;
-  return port;
+  ::freeaddrinfo(found);
+  if(m->listen_fd < 0)
+    throw std::runtime_error("cannot bind to " + where + ": " + std::strerror(error) +
+                             (error == EADDRINUSE ? " (another server listens there: try another --port, or none for a free one)"
+                                                  : ""));
+  sockaddr_storage a{};
+  socklen_t len = sizeof a;
+  ::getsockname(m->listen_fd, (sockaddr*)&a, &len);
+  return ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
 }
 
 void Server::listen()
 {
-  if(!m->bound) bind();
-  m->http.listen_after_bind();
+  if(m->listen_fd < 0) bind();
+  m->accept_loop();
 }
 
 int Server::start()
 {
-  const int port = bind();
-  m->thread = std::thread([this] { m->http.listen_after_bind(); });
-  for(int i = 0; i < 5000 && !m->http.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  int port = 0;
+  {
+    sockaddr_storage a{};
+    socklen_t len = sizeof a;
+    if(m->listen_fd < 0) port = bind();
+    else if(::getsockname(m->listen_fd, (sockaddr*)&a, &len) == 0)
+      port = ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
+  }
+  m->accepting = true;
+  m->accept_thread = std::thread([this] { m->accept_loop(); });
   return port;
 }
 
-void Server::stop()
-{
-  if(m->http.is_running()) m->http.stop();
-  if(m->thread.joinable()) m->thread.join();
-}
+void Server::stop() { m->stop(); }
 
 } // namespace lapmesh_viewer

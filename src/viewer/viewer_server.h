@@ -36,6 +36,15 @@ struct Server_options
   long long max_vertices = 5'000'000;    ///< file meshes above this are refused at load
   int max_k = 2000;                      ///< reconstruction: 1 <= k <= min(n, max_k)
   int max_iterations = 10000;            ///< smoothing: 1 <= iterations <= max_iterations
+  std::size_t cache_bytes = std::size_t(512) << 20;  ///< eigenbases kept (least recently used out)
+
+  // Connections (doc/viewer.md, "Limits"): each has its own thread, within these bounds.
+  int max_connections = 256;             ///< above: the longest-stalled connection is closed, else 503
+  int max_connections_per_address = 64;  ///< the same per client address
+  int request_timeout_ms = 10000;        ///< a request (head and body) must arrive within this
+  int io_timeout_ms = 5000;              ///< the longest wait for the socket to be readable/writable
+  int keep_alive_ms = 5000;              ///< an idle connection is closed after this
+  std::size_t max_header_bytes = 16 * 1024;  ///< request line and header fields together
 };
 
 class Server
@@ -52,13 +61,15 @@ public:
   void preload();
 
   /// Binds host:port; returns the port (the chosen one when options.port == 0). Throws
-  /// std::runtime_error if the address cannot be bound.
+  /// std::runtime_error("cannot bind to HOST:PORT: reason") if the address cannot be bound,
+  /// e.g. when another server listens there (the socket is not shared with it).
   int bind();
   /// Serves until stop() (blocking). bind() first.
   void listen();
   /// bind() and serve on a background thread; returns the port.
   int start();
-  /// Stops listening and joins the background thread, if any.
+  /// Stops listening, closes the connections, asks running operations to cancel and joins
+  /// every thread it started.
   void stop();
 
 private:

@@ -76,7 +76,7 @@ async function main() {
   const context = await chromium.launchPersistentContext(userDataDir, {
     executablePath: chromiumPath,
     headless: true,
-    viewport: { width: 1000, height: 700 },
+    viewport: { width: 1280, height: 800 },  // the size the layout is checked at
     acceptDownloads: true,
     args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
       '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
@@ -103,9 +103,70 @@ async function main() {
     const colorbar = async () => page.evaluate(() => [Number(document.getElementById('colorbar-box').dataset.min),
       Number(document.getElementById('colorbar-box').dataset.max)]);
     const errorText = () => page.evaluate(() => { const e = document.getElementById('error'); return e.hidden ? '' : e.textContent; });
+    const warningText = () => page.evaluate(() => { const e = document.getElementById('warning'); return e.hidden ? '' : e.textContent; });
+    // Vertices of the served geometry in normalized device coordinates of the page's camera.
+    const ndcOfGeometry = async () => {
+      const cam = await page.evaluate(() => window.lapmeshViewer.cameraState());
+      const P = await positions();
+      const [V, Pr] = [cam.view, cam.projection];  // column-major 4x4
+      const mul = (M, x) => [0, 1, 2, 3].map((r) => M[r] * x[0] + M[4 + r] * x[1] + M[8 + r] * x[2] + M[12 + r] * x[3]);
+      let maxAbs = 0, outside = 0;
+      for (let i = 0; i < P.length; i += 3) {
+        const e = mul(V, [P[i] - cam.center[0], P[i + 1] - cam.center[1], P[i + 2] - cam.center[2], 1]);
+        const c = mul(Pr, e);
+        const m = Math.max(Math.abs(c[0] / c[3]), Math.abs(c[1] / c[3]));
+        if (c[3] <= 0 || m > 1) outside += 1;
+        maxAbs = Math.max(maxAbs, m);
+      }
+      return { maxAbs, outside };
+    };
+    // Layout at 1280 x 800: the boxes of the given visible elements must not overlap.
+    const boxes = (ids) => page.evaluate((list) => list.map((id) => {
+      const e = document.getElementById(id);
+      if (!e || e.hidden || e.offsetParent === null) return null;
+      const r = e.getBoundingClientRect();
+      return { id, x: r.x, y: r.y, w: r.width, h: r.height };
+    }).filter(Boolean), ids);
+    const assertNoOverlap = async (ids) => {
+      const b = await boxes(ids);
+      for (let i = 0; i < b.length; i++) for (let j = i + 1; j < b.length; j++) {
+        const [p, q] = [b[i], b[j]];
+        const overlap = p.x < q.x + q.w && q.x < p.x + p.w && p.y < q.y + q.h && q.y < p.y + p.h;
+        assert.ok(!overlap, `${p.id} overlaps ${q.id}: ${JSON.stringify(p)} ${JSON.stringify(q)}`);
+      }
+      return b.map((x) => x.id);
+    };
 
     await page.goto(url);
     await idle();
+
+    // --- layout at 1280 x 800: no sideways scrolling in the panel, no clipped button or
+    // dropdown, the Colour and View sections visible without scrolling.
+    const layout = await page.evaluate(() => {
+      const panel = document.getElementById('panel');
+      const ctx = document.createElement('canvas').getContext('2d');
+      const clippedSelects = [];
+      for (const sel of panel.querySelectorAll('select')) {
+        ctx.font = getComputedStyle(sel).font;
+        for (const o of sel.options) {
+          // the text plus the arrow and padding of the control
+          if (ctx.measureText(o.text).width + 28 > sel.getBoundingClientRect().width) clippedSelects.push(`${sel.id}: ${o.text}`);
+        }
+      }
+      const clippedButtons = [...document.querySelectorAll('button')].filter((b) => b.scrollWidth > b.clientWidth + 1).map((b) => b.id);
+      const outside = [...panel.querySelectorAll('input, select, button')].filter((e) => {
+        const r = e.getBoundingClientRect(), p = panel.getBoundingClientRect();
+        return r.right > p.right - 1 || r.left < p.left;
+      }).map((e) => e.id);
+      const section = (title) => [...panel.querySelectorAll('section')].find((x) => x.querySelector('h2').textContent === title).getBoundingClientRect();
+      return { sideways: panel.scrollWidth - panel.clientWidth, clippedSelects, clippedButtons, outside,
+        colourBottom: section('Colour').bottom, viewBottom: section('View').bottom, height: window.innerHeight };
+    });
+    assert.equal(layout.sideways, 0, 'the side panel scrolls sideways');
+    assert.deepEqual(layout.clippedSelects, [], 'dropdowns too narrow for their options');
+    assert.deepEqual(layout.clippedButtons, [], 'buttons with clipped labels');
+    assert.deepEqual(layout.outside, [], 'controls beyond the panel');
+    assert.ok(layout.colourBottom <= layout.height && layout.viewBottom <= layout.height, `Colour/View below the fold: ${JSON.stringify(layout)}`);
     const options = await page.$$eval('#mesh option', (o) => o.map((x) => x.value));
     assert.deepEqual(options.slice(0, 1), [meshId]);
     for (const builtin of ['icosphere', 'torus', 'bumpy-sphere']) assert.ok(options.includes(builtin), builtin);
@@ -145,8 +206,9 @@ async function main() {
     assert.match(cliOut, /colour range/);
     await page.selectOption('#quantity', 'mean');
     await page.selectOption('#colormap', 'coolwarm');
+    await page.selectOption('#range-mode', 'percentile');  // the clip field is for this mode only
     await page.fill('#clip', '1');
-    await page.selectOption('#range-mode', 'percentile');
+    await page.dispatchEvent('#clip', 'change');
     await idle();
     await page.waitForFunction(() => window.lapmeshViewer.scalars.header.range_mode === 'percentile' &&
       window.lapmeshViewer.scalars.header.colormap === 'coolwarm');
@@ -170,14 +232,28 @@ async function main() {
     await page.selectOption('#quantity', 'gaussian');
     await page.selectOption('#colormap', 'coolwarm');
     await page.selectOption('#range-mode', 'symmetric');
-    await page.fill('#clip', '2');
-    await page.dispatchEvent('#clip', 'change');
     await idle();
+    // Symmetric is [-max|x|, max|x|]: no clip goes with it (the clip field is for percentile only).
     await page.waitForFunction(() => window.lapmeshViewer.scalars.header.quantity === 'gaussian' &&
-      window.lapmeshViewer.scalars.header.clip === 2);
+      window.lapmeshViewer.scalars.header.range_mode === 'symmetric');
+    assert.equal(await page.isDisabled('#clip'), true);
+    const symFrame = await page.evaluate(() => window.lapmeshViewer.scalars.header);
+    assert.equal(symFrame.clip, 0);
     const sym = await colorbar();
     assert.equal(sym[0], -sym[1]);
-    assert.deepEqual(sym, (await apiFrame(`/api/meshes/${meshId}/scalars?quantity=gaussian&range=symmetric&clip=2`)).header.range);
+    const gaussianServed = await apiFrame(`/api/meshes/${meshId}/scalars?quantity=gaussian&range=symmetric`);
+    assert.deepEqual(sym, gaussianServed.header.range);
+    const maxAbs = Math.max(...Array.from(gaussianServed.values).map(Math.abs));
+    assert.equal(sym[1], maxAbs, 'symmetric range is max |x|');
+    assert.notDeepEqual(sym, (await apiFrame(`/api/meshes/${meshId}/scalars?quantity=gaussian&range=symmetric&clip=1`)).header.range);
+    assert.match(await page.textContent('#colorbar-mode'), /symmetric/);
+    await page.selectOption('#range-mode', 'percentile');
+    await idle();
+    await page.waitForFunction(() => window.lapmeshViewer.scalars.header.range_mode === 'percentile');
+    assert.match(await page.textContent('#colorbar-mode'), /percentile clip 1% at each end/);
+    await page.selectOption('#range-mode', 'symmetric');
+    await idle();
+    await page.waitForFunction(() => window.lapmeshViewer.scalars.header.range_mode === 'symmetric');
     await shot('curvature_gaussian');
     await page.selectOption('#range-mode', 'manual');
     await page.fill('#range-min', '-50');
@@ -192,6 +268,51 @@ async function main() {
     assert.match(await errorText(), /min/);
     await page.selectOption('#range-mode', 'auto');
     await idle();
+
+    // --- "Reset camera" frames the current geometry: noise that spreads the mesh beyond the
+    // loaded framing, then a collapse by strong implicit smoothing.
+    await press('reset');
+    await page.selectOption('#noise-scale', 'bbox');
+    await page.fill('#noise-level', '1');
+    await page.fill('#noise-seed', '5');
+    await press('run-noise');
+    // Noise of the size of the mesh: a surface folded over itself many times per pixel is
+    // drawn as edges only, and frames stay fast.
+    assert.equal(await page.evaluate(() => document.body.dataset.edgesOnly), '1');
+    assert.match(await warningText(), /only its edges are drawn/);
+    let t0 = Date.now();
+    await page.screenshot();
+    assert.ok(Date.now() - t0 < 5000, `a frame of the noisy mesh took ${Date.now() - t0} ms`);
+    const spread = await ndcOfGeometry();
+    assert.ok(spread.outside > 0, 'the noisy mesh should leave the loaded framing');
+    await page.click('#reset-camera');
+    const framed = await ndcOfGeometry();
+    assert.equal(framed.outside, 0, 'reset camera: every vertex in view');
+    assert.ok(framed.maxAbs > 0.5, `reset camera: the mesh fills the view (${framed.maxAbs})`);
+    await press('reset');
+    await page.selectOption('#sm-scheme', 'implicit');
+    await page.fill('#sm-lambda', '1e3');
+    await page.selectOption('#sm-unit', 'edge2');
+    await page.fill('#sm-iterations', '5');
+    await page.selectOption('#sm-laplacian', 'uniform');  // a fixed uniform operator stays positive definite
+    await page.check('#sm-fixed');
+    await press('run-smooth');
+    assert.equal(await errorText(), '');
+    await page.click('#reset-camera');
+    const collapsed = await ndcOfGeometry();
+    assert.equal(collapsed.outside, 0);
+    assert.equal(await page.evaluate(() => document.body.dataset.edgesOnly), '');
+    assert.ok(collapsed.maxAbs > 0.5, `reset camera on a collapsed mesh: it fills the view (${collapsed.maxAbs})`);
+    await page.fill('#sm-lambda', 'auto');
+    await page.selectOption('#sm-unit', 'absolute');
+    await page.fill('#sm-iterations', '5');
+    await page.selectOption('#sm-laplacian', 'cotangent');
+    await page.uncheck('#sm-fixed');
+    await page.selectOption('#noise-scale', 'mean-edge');
+    await page.fill('#noise-level', '0.1');
+    await page.fill('#noise-seed', '0');
+    await press('reset');
+    await press('run-curvature');  // the downloads below expect the curvatures
 
     // --- view controls: wireframe, flat shading, orbit, zoom, camera reset, PNG.
     await page.check('#wireframe');
@@ -306,10 +427,44 @@ async function main() {
     await press('run-noise');
     assert.match(await errorText(), /level/);
 
-    // --- progress and cancel of a long smoothing run on the bumpy sphere.
+    // --- a blown-up mesh (explicit smoothing far above its stability bound): not drawn, said
+    // so, and the page keeps rendering; Reset brings it back.
     await page.selectOption('#mesh', 'bumpy-sphere');
     await page.waitForFunction(() => window.lapmeshViewer.geometry.header.id === 'bumpy-sphere');
     await idle();
+    await press('reset');
+    await page.selectOption('#sm-scheme', 'explicit');
+    await page.fill('#sm-lambda', '50');
+    await page.selectOption('#sm-unit', 'bound');
+    // a fixed uniform operator: the growth stays finite (about 100x per step), no face degenerates
+    await page.selectOption('#sm-laplacian', 'uniform');
+    await page.check('#sm-fixed');
+    await page.uncheck('#sm-restore');
+    await page.fill('#sm-iterations', '10');
+    await press('run-smooth');
+    assert.equal(await errorText(), '');
+    assert.match(await warningText(), /not drawn/);
+    assert.equal(await page.evaluate(() => document.body.dataset.blownUp), '1');
+    let t = Date.now();
+    await shot('blown_up');
+    assert.ok(Date.now() - t < 5000, `a frame of the blown-up mesh took ${Date.now() - t} ms`);
+    await page.mouse.move(box.x + 300, box.y + 300);
+    await page.mouse.down();
+    await page.mouse.move(box.x + 380, box.y + 330, { steps: 3 });
+    await page.mouse.up();
+    t = Date.now();
+    await page.screenshot();
+    assert.ok(Date.now() - t < 5000, 'frames freeze after orbiting the blown-up mesh');
+    await press('reset');
+    assert.equal(await warningText(), '');
+    assert.equal(await page.evaluate(() => window.lapmeshViewer.cameraState().drawn), true);
+
+    // --- a warning (explicit step above the bound), then a long run with progress and Cancel:
+    // at 1280 x 800 none of status, warning, progress, colour bar and error overlap.
+    await page.fill('#sm-lambda', '1.5');
+    await page.fill('#sm-iterations', '1');
+    await press('run-smooth');
+    assert.match(await warningText(), /exceeds the explicit stability bound/);
     await page.selectOption('#sm-scheme', 'implicit');
     await page.fill('#sm-lambda', '0.001');
     await page.selectOption('#sm-unit', 'absolute');
@@ -317,11 +472,49 @@ async function main() {
     await page.uncheck('#sm-fixed');
     await page.fill('#sm-iterations', '10000');
     await page.click('#run-smooth');
-    await page.waitForFunction(() => /smooth · smoothing · \d+\/10000/.test(document.getElementById('progress-text').textContent));
+    await page.waitForFunction(() => /bumpy-sphere: smooth · smoothing · \d+\/10000/.test(document.getElementById('progress-text').textContent));
+    const shown = await assertNoOverlap(['status', 'warning', 'progress', 'colorbar-box', 'error']);
+    for (const id of ['warning', 'progress', 'colorbar-box']) assert.ok(shown.includes(id), `${id} not shown`);
     await shot('progress');
+
+    // --- switching mesh during the run: progress stays that of the bumpy sphere, Cancel
+    // cancels it (not the icosphere), and the icosphere is not labelled with its result.
+    const icoBefore = Array.from((await apiFrame('/api/meshes/icosphere/geometry')).positions);
+    await page.selectOption('#mesh', 'icosphere');
+    await page.waitForFunction(() => window.lapmeshViewer.geometry.header.id === 'icosphere');
+    const progressOf = () => page.textContent('#progress-text');
+    const p1 = await progressOf();
+    await page.waitForFunction((before) => {
+      const now = document.getElementById('progress-text').textContent;
+      return now !== before && /^bumpy-sphere: smooth · smoothing · \d+\/10000/.test(now);
+    }, p1);
     await page.click('#cancel');
     await idle();
-    assert.equal(await errorText(), 'cancelled');
+    assert.equal(await errorText(), 'bumpy-sphere: cancelled');
+    const bumpyProgress = await (await api('/api/meshes/bumpy-sphere/progress')).json();
+    assert.equal(bumpyProgress.running, false);
+    assert.equal(bumpyProgress.cancel_requested, true);
+    assert.equal(await page.evaluate(() => window.lapmeshViewer.geometry.header.id), 'icosphere');
+    assert.deepEqual(await positions(), icoBefore);
+    assert.doesNotMatch(await page.textContent('#status'), /smooth/);
+    await assertNoOverlap(['status', 'warning', 'progress', 'colorbar-box', 'error']);
+
+    // A run that finishes while another mesh is shown: the status names its mesh.
+    await page.selectOption('#mesh', 'bumpy-sphere');
+    await page.waitForFunction(() => window.lapmeshViewer.geometry.header.id === 'bumpy-sphere');
+    await page.fill('#sm-iterations', '100');
+    await page.click('#run-smooth');
+    await page.waitForFunction(() => /^bumpy-sphere: smooth/.test(document.getElementById('progress-text').textContent));
+    await page.selectOption('#mesh', 'icosphere');
+    await page.waitForFunction(() => window.lapmeshViewer.geometry.header.id === 'icosphere');
+    await idle();
+    assert.equal(await errorText(), '');
+    assert.match(await page.textContent('#status'), /^smooth on bumpy-sphere finished/);
+    assert.deepEqual(await positions(), icoBefore);
+    await page.selectOption('#mesh', 'bumpy-sphere');
+    await page.waitForFunction(() => window.lapmeshViewer.geometry.header.id === 'bumpy-sphere');
+    await idle();
+    await press('reset');
 
     // --- a figure through URL parameters (what a report script does), without the panel.
     await page.goto(`${url}?mesh=${meshId}&op=curvature&area=mixed&quantity=mean&colormap=coolwarm&range=percentile&clip=1&ui=0&azimuth=60&elevation=10`);
@@ -333,6 +526,7 @@ async function main() {
     assert.deepEqual(pageErrors, [], 'errors in the page');
     log('viewer_e2e: all checks passed');
   } finally {
+    if (pageErrors.length) console.error('errors in the page:', pageErrors.join('\n'));
     await context.close();
     proc.kill('SIGTERM');
     fs.rmSync(userDataDir, { recursive: true, force: true });

@@ -48,9 +48,13 @@ const state = {
   scalars: null,       // { header, values: Float64Array, colors: Uint8Array }
   colormaps: null,     // name -> Uint8 RGB x 256
   busy: false,
+  op: null,            // the running operation: { mesh, op, requestId }
   lastResult: null,
   errors: 0,
+  loadRadius: 1,       // bounding radius of the mesh as loaded (the guard's yardstick)
+  drawn: true,         // false while the geometry is refused by the guard
 };
+let requestCounter = 0;
 window.lapmeshViewer = state;  // for tests and report scripts
 
 // ---- three.js scene --------------------------------------------------------------------
@@ -65,6 +69,13 @@ scene.background = new THREE.Color(0xffffff);
 const camera = new THREE.PerspectiveCamera(35, 1, 0.001, 1000);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.enableDamping = false;
+// For tests: the camera as the page uses it (positions are drawn relative to state.center).
+state.cameraState = () => {
+  camera.updateMatrixWorld();
+  return { position: camera.position.toArray(), target: controls.target.toArray(), fov: camera.fov,
+    projection: Array.from(camera.projectionMatrix.elements), view: Array.from(camera.matrixWorldInverse.elements),
+    center: state.center, drawn: state.drawn };
+};
 scene.add(new THREE.AmbientLight(0xffffff, 0.9));
 const headlight = new THREE.DirectionalLight(0xffffff, 2.2);
 headlight.position.set(0.3, 0.5, 1);
@@ -87,17 +98,78 @@ function render() { renderer.render(scene, camera); }
 controls.addEventListener('change', render);
 window.addEventListener('resize', resize);
 
+/** Coordinates beyond this many loaded radii are not drawn (the renderer stalls on them). */
+const MAX_EXTENT_RADII = 1e4;
+
+/** Above this many layers of surface per pixel (surface area over the area of the framing
+ *  disc) a filled surface takes seconds per frame in a software renderer: draw edges only. */
+const MAX_LAYERS = 64;
+let surfaceTooDeep = false;
+
+/** Surface area of the served triangles over the area of a disc of the given radius. */
+function layersOf(P, T, r) {
+  let area = 0;
+  for (let t = 0; t < T.length; t += 3) {
+    const a = 3 * T[t], b = 3 * T[t + 1], c = 3 * T[t + 2];
+    const ux = P[b] - P[a], uy = P[b + 1] - P[a + 1], uz = P[b + 2] - P[a + 2];
+    const vx = P[c] - P[a], vy = P[c + 1] - P[a + 1], vz = P[c + 2] - P[a + 2];
+    area += 0.5 * Math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx);
+  }
+  return area / (Math.PI * r * r);
+}
+
+/** Shows the filled surface, or only its edges when it is too deep to fill in time. */
+function applyVisibility() {
+  if (!surface) return;
+  surface.visible = state.drawn && !surfaceTooDeep;
+  wire.visible = state.drawn && ($('wireframe').checked || surfaceTooDeep);
+}
+
+/** Non-finite coordinates and the largest distance from the loaded centre, in loaded radii. */
+function extentOf(P) {
+  const c = state.center;
+  let worst = 0, finite = true;
+  for (let i = 0; i < P.length; i += 3) {
+    const dx = P[i] - c[0], dy = P[i + 1] - c[1], dz = P[i + 2] - c[2];
+    const d = dx * dx + dy * dy + dz * dz;
+    if (!Number.isFinite(d)) { finite = false; break; }
+    if (d > worst) worst = d;
+  }
+  return { finite, radii: Math.sqrt(worst) / state.loadRadius };
+}
+
+function showWarning(text) {
+  $('warning').textContent = text;
+  $('warning').hidden = !text;
+}
+
 /** Builds the three.js geometry from the served positions (centred, in Float32). */
 function setGeometry(frame, keepCamera) {
   const P = frame.buffers.positions, n = P.length / 3;
-  const box = new THREE.Box3();
   if (!keepCamera || !state.center) {
     let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
     for (let i = 0; i < n; i++) for (let a = 0; a < 3; a++) { lo[a] = Math.min(lo[a], P[3 * i + a]); hi[a] = Math.max(hi[a], P[3 * i + a]); }
+    const box = new THREE.Box3(new THREE.Vector3(...lo), new THREE.Vector3(...hi));
+    const r = 0.5 * box.getSize(new THREE.Vector3()).length();
     state.center = lo.map((x, a) => 0.5 * (x + hi[a]));
-    box.set(new THREE.Vector3(...lo), new THREE.Vector3(...hi));
-    radius = 0.5 * box.getSize(new THREE.Vector3()).length() || 1;
+    radius = Number.isFinite(r) && r > 0 ? r : 1;
+    state.loadRadius = radius;
+    if (!Number.isFinite(r)) state.center = [0, 0, 0];
   }
+  // Guard: a blown-up mesh (e.g. explicit smoothing above the stability bound) is not uploaded.
+  const ext = extentOf(P);
+  if (!ext.finite || ext.radii > MAX_EXTENT_RADII) {
+    state.drawn = false;
+    document.body.dataset.blownUp = '1';
+    applyVisibility();
+    showWarning(`The geometry ${ext.finite ? `reaches ${ext.radii.toExponential(1)} times the size of the mesh as loaded` : 'has non-finite coordinates'}` +
+      ' (did the smoothing exceed its stability bound?): it is not drawn. Reset brings back the mesh as loaded.');
+    render();
+    return;
+  }
+  state.drawn = true;
+  delete document.body.dataset.blownUp;
+  showWarning(ext.radii > 10 ? `The geometry reaches ${ext.radii.toFixed(0)} times the size of the mesh as loaded; the camera was reset to frame it.` : '');
   const c = state.center, pos = new Float32Array(P.length);
   for (let i = 0; i < n; i++) for (let a = 0; a < 3; a++) pos[3 * i + a] = P[3 * i + a] - c[a];
   if (bufferGeometry) bufferGeometry.dispose();
@@ -115,18 +187,31 @@ function setGeometry(frame, keepCamera) {
     surface.geometry = bufferGeometry;
     wire.geometry = bufferGeometry;
   }
-  wire.visible = $('wireframe').checked;
-  if (!keepCamera) resetCamera();
+  if (!keepCamera || ext.radii > 10) resetCamera();
+  const layers = layersOf(P, frame.buffers.indices, radius);
+  surfaceTooDeep = layers > MAX_LAYERS;
+  if (surfaceTooDeep) {
+    showWarning(`The surface folds over itself about ${layers.toFixed(0)} times per pixel (noise or an unstable step?): ` +
+      'only its edges are drawn. Reset brings back the mesh as loaded.');
+  }
+  document.body.dataset.edgesOnly = surfaceTooDeep ? '1' : '';
+  applyVisibility();
   render();
 }
 
+/** Frames the current geometry (its bounding sphere), from the given direction. */
 function resetCamera(azimuthDeg = 30, elevationDeg = 20, zoom = 1) {
+  const target = new THREE.Vector3(0, 0, 0);
+  if (bufferGeometry && state.drawn && bufferGeometry.boundingSphere && bufferGeometry.boundingSphere.radius > 0) {
+    target.copy(bufferGeometry.boundingSphere.center);
+    radius = bufferGeometry.boundingSphere.radius;
+  }
   const az = THREE.MathUtils.degToRad(azimuthDeg), el = THREE.MathUtils.degToRad(elevationDeg);
   const d = radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2)) * 1.05 / zoom;
-  camera.position.set(d * Math.cos(el) * Math.sin(az), d * Math.sin(el), d * Math.cos(el) * Math.cos(az));
+  camera.position.set(target.x + d * Math.cos(el) * Math.sin(az), target.y + d * Math.sin(el), target.z + d * Math.cos(el) * Math.cos(az));
   camera.near = radius / 100; camera.far = radius * 100 + d;
   camera.updateProjectionMatrix();
-  controls.target.set(0, 0, 0);
+  controls.target.copy(target);
   controls.update();
   render();
 }
@@ -164,7 +249,7 @@ function colourQuery() {
   q.set('colormap', $('colormap').value);
   const mode = $('range-mode').value;
   q.set('range', mode);
-  if (mode === 'percentile' || mode === 'symmetric') q.set('clip', $('clip').value || '0');
+  if (mode === 'percentile') q.set('clip', $('clip').value || '0');  // the other modes take no clip
   if (mode === 'manual') { q.set('min', $('range-min').value); q.set('max', $('range-max').value); }
   return q;
 }
@@ -189,6 +274,15 @@ function drawColorbar() {
   const info = s.header.info || {};
   const extra = info.source === 'curvature' ? ` (${info.laplacian}, ${info.area} area)` : '';
   $('colorbar-title').textContent = `${s.header.quantity}${extra}; data in [${fmt(s.header.data_range[0])}, ${fmt(s.header.data_range[1])}]`;
+  const modeText = {
+    auto: 'range: auto ([min, max], symmetric when both signs occur)',
+    symmetric: s.header.clip > 0 ? `range: symmetric, ${s.header.clip}% clipped` : 'range: symmetric ([−max |x|, max |x|])',
+    percentile: `range: percentile clip ${s.header.clip}% at each end`,
+    manual: 'range: manual',
+  }[s.header.range_mode] || `range: ${s.header.range_mode}`;
+  $('colorbar-mode').textContent = modeText;
+  box.dataset.mode = s.header.range_mode;
+  box.dataset.clip = String(s.header.clip);
   box.dataset.min = String(lo);
   box.dataset.max = String(hi);
   box.hidden = false;
@@ -210,14 +304,18 @@ async function loadScalars() {
     applyColors(); drawColorbar();
     return;
   }
-  const f = await getFrame(`/api/meshes/${state.mesh}/scalars?${colourQuery()}`);
+  const mesh = state.mesh;
+  const f = await getFrame(`/api/meshes/${mesh}/scalars?${colourQuery()}`);
+  if (state.mesh !== mesh) return;  // the user picked another mesh meanwhile
   state.scalars = { header: f.header, values: f.buffers.values, colors: f.buffers.colors };
   applyColors();
   drawColorbar();
 }
 
 async function loadGeometry(keepCamera) {
-  const f = await getFrame(`/api/meshes/${state.mesh}/geometry`);
+  const mesh = state.mesh;
+  const f = await getFrame(`/api/meshes/${mesh}/geometry`);
+  if (state.mesh !== mesh) return;  // a stale answer
   state.geometry = { header: f.header, positions: f.buffers.positions, indices: f.buffers.indices };
   $('mesh-info').textContent = `${f.header.vertices} vertices, ${f.header.faces} faces`;
   $('rec-k').max = f.header.vertices;
@@ -226,25 +324,25 @@ async function loadGeometry(keepCamera) {
   await loadScalars();
 }
 
-/** Runs a UI action: one at a time, errors shown in the page. */
-async function guard(action) {
+/** Runs a UI action, errors shown in the page (naming the mesh when it is not the one shown). */
+async function guard(action, mesh) {
   clearError();
   try {
     await action();
   } catch (e) {
-    showError(e.message);
+    showError(mesh && mesh !== state.mesh ? `${mesh}: ${e.message}` : e.message);
   }
 }
 
 let pollTimer = null;
-function startProgress(op) {
+function startProgress(run) {
   $('cancel').disabled = false;
-  $('progress-text').textContent = `${op}…`;
+  $('progress-text').textContent = `${run.mesh}: ${run.op}…`;
   pollTimer = setInterval(async () => {
     try {
-      const p = await getJson(`/api/meshes/${state.mesh}/progress`);
-      if (!p.running) return;
-      const parts = [p.operation, p.stage];
+      const p = await getJson(`/api/meshes/${run.mesh}/progress`);
+      if (state.op !== run || !p.running || p.request_id !== run.requestId) return;
+      const parts = [`${run.mesh}: ${p.operation}`, p.stage];
       if (p.total > 0) parts.push(`${p.done}/${p.total}`);
       else if (p.done > 0) parts.push(`${p.done} solves`);
       if (p.elapsed_ms !== undefined) parts.push(`${(p.elapsed_ms / 1000).toFixed(1)} s`);
@@ -259,30 +357,43 @@ function stopProgress() {
 }
 
 const buttons = ['reset', 'run-curvature', 'run-reconstruct', 'run-smooth', 'run-noise'];
+/** Runs an operation on the current mesh. It carries its mesh and a request id: progress,
+ *  cancel and the answer concern that mesh even if the user picks another one meanwhile. */
 async function runOperation(op, body) {
   if (state.busy) return;
+  const run = { mesh: state.mesh, op, requestId: `${Date.now().toString(36)}-${++requestCounter}` };
   state.busy = true;
+  state.op = run;
   for (const b of buttons) $(b).disabled = true;
   document.body.dataset.busy = '1';
-  startProgress(op);
+  startProgress(run);
   try {
     await guard(async () => {
-      const r = await post(`/api/meshes/${state.mesh}/${op}`, body);
+      const r = await post(`/api/meshes/${run.mesh}/${op}`, { ...body, request_id: run.requestId });
+      if (r.mesh !== run.mesh || r.request_id !== run.requestId) throw new Error(`an answer for another operation arrived (${r.mesh}, ${r.request_id})`);
       state.lastResult = r;
-      const warn = r.warning ? ` — warning: ${r.warning}` : '';
-      const extra = op === 'smooth' ? `, λ = ${fmt(r.lambda)}` : op === 'noise' ? `, σ = ${fmt(r.sigma)}` : op === 'reconstruct' ? `, k = ${r.k}` : '';
-      setStatus(`${op}: ${r.elapsed_ms.toFixed(1)} ms on the server${extra}${warn}`);
+      const extra = op === 'smooth' ? `, λ = ${fmt(r.lambda)}` : op === 'noise' ? `, σ = ${fmt(r.sigma)}` : op === 'reconstruct' ? `, k = ${r.k}${r.basis_cached ? ' (basis reused)' : ''}` : '';
+      if (state.mesh !== run.mesh) {
+        // The user looks at another mesh now: say so, and leave that mesh's view alone.
+        setStatus(`${op} on ${run.mesh} finished (${r.elapsed_ms.toFixed(1)} ms); pick ${run.mesh} to see it`);
+        return;
+      }
+      setStatus(`${op}: ${r.elapsed_ms.toFixed(1)} ms on the server${extra}`);
       $('status').dataset.elapsed = String(r.elapsed_ms);
+      $('status').dataset.mesh = run.mesh;
       const preferred = op === 'curvature' ? (urlParams.get('quantity') || undefined) : undefined;
-      const f = await getFrame(`/api/meshes/${state.mesh}/geometry`);
+      const f = await getFrame(`/api/meshes/${run.mesh}/geometry`);
+      if (state.mesh !== run.mesh) return;
       state.geometry = { header: f.header, positions: f.buffers.positions, indices: f.buffers.indices };
       setGeometry(f, true);
+      if (r.warning) showWarning(`warning: ${r.warning}${$('warning').hidden ? '' : ' — ' + $('warning').textContent}`);
       setQuantities(f.header.scalars, op === 'curvature' ? preferred || $('quantity').value || 'mean' : 'displacement');
       await loadScalars();
-    });
+    }, run.mesh);
   } finally {
     stopProgress();
     state.busy = false;
+    state.op = null;
     for (const b of buttons) $(b).disabled = false;
     delete document.body.dataset.busy;
   }
@@ -334,7 +445,7 @@ function screenshot() {
 const raycaster = new THREE.Raycaster();
 renderer.domElement.addEventListener('pointermove', (ev) => {
   const out = $('readout');
-  if (!surface || !state.geometry) { out.hidden = true; return; }
+  if (!surface || !state.geometry || !state.drawn) { out.hidden = true; return; }
   const r = renderer.domElement.getBoundingClientRect();
   const ndc = new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1);
   raycaster.setFromCamera(ndc, camera);
@@ -358,16 +469,28 @@ renderer.domElement.addEventListener('pointerleave', () => { $('readout').hidden
 
 // ---- wiring ----------------------------------------------------------------------------
 
-$('mesh').addEventListener('change', () => guard(async () => { state.mesh = $('mesh').value; state.center = null; await loadGeometry(false); }));
+$('mesh').addEventListener('change', () => guard(async () => {
+  state.mesh = $('mesh').value;
+  state.center = null;
+  state.scalars = null;
+  showWarning('');
+  setStatus('');
+  await loadGeometry(false);
+}));
 $('reset').addEventListener('click', () => runOperation('reset', {}));
 $('run-curvature').addEventListener('click', () => runOperation('curvature', operations.curvature()));
 $('run-reconstruct').addEventListener('click', () => runOperation('reconstruct', operations.reconstruct()));
 $('run-smooth').addEventListener('click', () => runOperation('smooth', operations.smooth()));
 $('run-noise').addEventListener('click', () => runOperation('noise', operations.noise()));
-$('cancel').addEventListener('click', () => guard(() => post(`/api/meshes/${state.mesh}/cancel`, {})));
+$('cancel').addEventListener('click', () => {
+  const run = state.op;  // the operation shown, on its own mesh, whichever mesh is in view
+  if (run) guard(() => post(`/api/meshes/${run.mesh}/cancel`, { request_id: run.requestId }));
+});
+function syncRangeFields() { $('clip').disabled = $('range-mode').value !== 'percentile'; }
+$('range-mode').addEventListener('change', syncRangeFields);
 for (const id of ['quantity', 'colormap', 'range-mode', 'clip', 'range-min', 'range-max'])
   $(id).addEventListener('change', () => guard(loadScalars));
-$('wireframe').addEventListener('change', () => { if (wire) wire.visible = $('wireframe').checked; render(); });
+$('wireframe').addEventListener('change', () => { applyVisibility(); render(); });
 $('shading').addEventListener('change', () => { surfaceMaterial.flatShading = $('shading').value === 'flat'; surfaceMaterial.needsUpdate = true; render(); });
 $('reset-camera').addEventListener('click', () => resetCamera());
 $('screenshot').addEventListener('click', screenshot);
@@ -392,6 +515,7 @@ function applyUrlFields() {
     ['free_boundary', 'sm-free-boundary'], ['wireframe', 'wireframe']])
     if (urlParams.has(key)) $(id).checked = urlParams.get(key) === '1' || urlParams.get(key) === 'true';
   if (urlParams.get('ui') === '0') document.body.classList.add('no-ui');
+  syncRangeFields();
   surfaceMaterial.flatShading = $('shading').value === 'flat';
 }
 
