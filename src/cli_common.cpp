@@ -2,7 +2,9 @@
 
 #include <lapmesh/io.h>
 
+#include <filesystem>
 #include <iostream>
+#include <memory>
 
 namespace lapmesh_cli {
 
@@ -32,10 +34,31 @@ void check_output_path(const std::string& out, std::initializer_list<const char*
   throw Failure(out + ": unsupported output format '." + ext + "' (expected " + list + ")");
 }
 
+void check_output_target(const std::string& input, const std::string& output, bool force)
+{
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status st = fs::status(output, ec);
+  if(ec || !fs::exists(st)) return;  // a new file
+  if(fs::equivalent(input, output, ec) && !ec && !force)
+    throw Failure(output + ": is the input file " + input +
+                  " (also through a link); refusing to overwrite the input (use --force to overwrite it)");
+  if(fs::is_directory(st)) return;  // write_atomically() says "it is a directory"
+  if(!fs::is_regular_file(st)) throw Failure(output + ": exists and is not a regular file; refusing to replace it");
+  const auto writable = fs::perms::owner_write | fs::perms::group_write | fs::perms::others_write;
+  if((st.permissions() & writable) == fs::perms::none && !force)
+    throw Failure(output + ": the file is read-only; refusing to replace it (use --force to replace it)");
+}
+
 void add_input_output(CLI::App& cmd, std::string& input, std::string& output, const std::string& output_help)
 {
   cmd.add_option("IN", input, "input mesh (.off, .obj, .ply, .stl)")->required();
   cmd.add_option("-o,--output", output, output_help)->required();
+  // Checked once the subcommand's options are parsed, before it reads anything.
+  auto force = std::make_shared<bool>(false);
+  cmd.add_flag("--force", *force,
+               "replace OUT even when it is the input file (same file, also through links) or read-only");
+  cmd.parse_complete_callback([&input, &output, force] { check_output_target(input, output, *force); });
 }
 
 void add_laplacian_option(CLI::App& cmd, std::string& value)

@@ -51,7 +51,13 @@ decltype(auto) or_fail(const std::string& path, Function&& f)
   }
 }
 
-/// The positional IN and the required -o OUT of every subcommand.
+/// Fails when OUT exists and is IN itself (std::filesystem::equivalent: also through
+/// symbolic or hard links) or is read-only, unless `force`; fails for an existing OUT that
+/// is neither a regular file nor a directory (a device, a FIFO), force or not.
+void check_output_target(const std::string& input, const std::string& output, bool force);
+
+/// The positional IN, the required -o OUT and --force of every subcommand; OUT is checked
+/// by check_output_target() as soon as the subcommand's arguments are parsed.
 void add_input_output(CLI::App& cmd, std::string& input, std::string& output, const std::string& output_help);
 
 /// Options shared by several subcommands.

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -27,11 +28,6 @@ namespace internal {
 
 /// n x 3 vertex positions; row-major so that a vertex's coordinates are contiguous.
 using Positions = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
-
-/// A face whose doubled area is at most this fraction of its longest squared edge has
-/// numerically undefined angles (its smallest angle is below ~1e-12 rad): lapmesh reports
-/// it instead of letting infinite cotangents turn into NaN.
-constexpr double degenerate_face_tolerance = 1e-12;
 
 struct Corner_geometry
 {
@@ -58,6 +54,13 @@ inline void throw_degenerate_face(Index f)
                    Mesh_error::Element::face, f);
 }
 
+/// Throws the Mesh_error of a face that face_defect() refused.
+inline void throw_face_defect(Index f, Face_defect d)
+{
+  if(d == Face_defect::zero_area) throw_degenerate_face(f);
+  throw Mesh_error(out_of_range_message(f, d), Mesh_error::Element::face, f);
+}
+
 /// Fills `g` from the positions. Throws Mesh_error naming the first degenerate face.
 inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
                                     const Corner_request& request, bool parallel,
@@ -78,11 +81,13 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
     // e[a] is the edge opposite corner a.
     const Eigen::Vector3d e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0;
     const Eigen::Vector3d cross = e2.cross(-e1);
-    const double dbl_area = cross.norm();
+    // Not cross.norm(): squaring the components overflows for edges beyond ~1e77 and
+    // underflows below ~1e-77, well inside the range of representable squared lengths.
+    const double dbl_area = cross_norm(cross.x(), cross.y(), cross.z());
     const double l0 = e0.squaredNorm(), l1 = e1.squaredNorm(), l2 = e2.squaredNorm();
     const double dot0 = -e2.dot(e1), dot1 = -e0.dot(e2), dot2 = -e1.dot(e0);
 
-    if(!(dbl_area > degenerate_face_tolerance * std::max(l0, std::max(l1, l2)))) {
+    if(!face_in_range(std::max(l0, std::max(l1, l2)), dbl_area)) {
       Index current = first_degenerate.load();
       while(f < current && !first_degenerate.compare_exchange_weak(current, f)) {}
       return;
@@ -123,8 +128,12 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
       n[0] = cross.x(); n[1] = cross.y(); n[2] = cross.z();
     }
   });
-  if(first_degenerate.load() != std::numeric_limits<Index>::max())
-    throw_degenerate_face(first_degenerate.load());
+  if(first_degenerate.load() != std::numeric_limits<Index>::max()) {
+    const Index f = first_degenerate.load();
+    const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
+    const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
+    throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
+  }
 }
 
 /// Sum over the corners of each vertex of a per-corner array.

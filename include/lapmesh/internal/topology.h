@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,6 +29,74 @@ using Index = int;
 
 inline Index next_corner(Index c) { return c % 3 == 2 ? c - 2 : c + 1; }
 inline Index prev_corner(Index c) { return c % 3 == 0 ? c + 2 : c - 1; }
+
+/// A face whose doubled area is at most this fraction of its longest squared edge has
+/// numerically undefined angles (its smallest angle is below ~1e-12 rad): lapmesh reports
+/// it instead of letting infinite cotangents turn into NaN.
+constexpr double degenerate_face_tolerance = 1e-12;
+
+/// The range of a face's longest squared edge in which its squared lengths, dot products,
+/// areas and their sums over a vertex's faces are finite normal doubles with room to spare
+/// (edge lengths between 1e-145 and 1e145). Outside it a face is refused as "out of the
+/// representable range" rather than computed wrong (overflow) or called degenerate
+/// (underflow).
+constexpr double min_squared_edge = 1e-290;
+constexpr double max_squared_edge = 1e290;
+
+/// |c| for a cross product c of two edges, without the overflow or underflow of squaring
+/// its components when they are beyond 1e154 or below 1e-154.
+inline double cross_norm(double x, double y, double z)
+{
+  const double sq = x * x + y * y + z * z;
+  if(sq >= 2.2250738585072014e-308 && sq <= 1.7976931348623157e308) return std::sqrt(sq);
+  const double s = std::max(std::abs(x), std::max(std::abs(y), std::abs(z)));
+  if(!(s > 0) || !std::isfinite(s)) return std::sqrt(sq);  // 0, or NaN/inf: nothing to rescue
+  const double a = x / s, b = y / s, c = z / s;
+  return s * std::sqrt(a * a + b * b + c * c);
+}
+
+/// What is wrong with a face.
+enum class Face_defect { none, zero_area, too_large, too_small };
+
+/// True when a face with this longest squared edge and doubled area is fine: the test of
+/// the hot loops; face_defect() says what is wrong with one that is not.
+inline bool face_in_range(double longest_squared_edge, double doubled_area)
+{
+  return longest_squared_edge <= max_squared_edge && longest_squared_edge >= min_squared_edge &&
+         doubled_area > degenerate_face_tolerance * longest_squared_edge;
+}
+
+/// What is wrong with the triangle (p0, p1, p2), if anything. A face too large (an edge
+/// above 1e145, or an overflowing coordinate difference) or too small (every edge below
+/// about 1e-145, however well shaped) is out of the representable range; a face in range
+/// whose angles are numerically undefined (also one with a NaN) has zero area.
+inline Face_defect face_defect(const double* p0, const double* p1, const double* p2)
+{
+  double longest = 0, extent = 0, e[3][3];
+  for(int c = 0; c < 3; ++c) {
+    e[0][c] = p1[c] - p0[c];
+    e[1][c] = p2[c] - p1[c];
+    e[2][c] = p0[c] - p2[c];
+  }
+  for(const auto& v : e) {
+    longest = std::max(longest, v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    for(double x : v) extent = std::max(extent, std::abs(x));
+  }
+  if(longest > max_squared_edge) return Face_defect::too_large;  // also +inf
+  if(extent > 0 && extent * extent < min_squared_edge) return Face_defect::too_small;
+  const double cx = e[0][1] * -e[2][2] - e[0][2] * -e[2][1], cy = e[0][2] * -e[2][0] - e[0][0] * -e[2][2],
+               cz = e[0][0] * -e[2][1] - e[0][1] * -e[2][0];
+  if(!(cross_norm(cx, cy, cz) > degenerate_face_tolerance * longest)) return Face_defect::zero_area;  // NaN too
+  return longest < min_squared_edge ? Face_defect::too_small : Face_defect::none;
+}
+
+/// The message of a face that is not zero-area but out of the representable range.
+inline std::string out_of_range_message(std::int64_t f, Face_defect d)
+{
+  return "face " + std::to_string(f) + " has coordinates out of the representable range (" +
+         (d == Face_defect::too_large ? "an edge longer than 1e145" : "all edges shorter than about 1e-145") +
+         "; rescale the mesh)";
+}
 
 struct Mesh_topology
 {
