@@ -678,6 +678,9 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       // flattest face, in the words of the zero-area error (positions after `it` steps).
       if(!ok) {
         const auto [face, flatness] = flattest_face(t, P);
+        if(!(flatness < 1e-6))  // no face to blame (a user's solver that failed, say)
+          throw Numerical_error("iteration " + std::to_string(it + 1) + ": the factorisation of M - lambda S failed (" +
+                                solver.failure() + ")");
         char ratio[32];
         std::snprintf(ratio, sizeof ratio, "%.2g", flatness);
         throw Numerical_error(
