@@ -93,8 +93,11 @@ void register_curvature(CLI::App& app)
   cmd->add_option("--quantity", o->quantity, "quantity to colour: mean, gaussian, k1 or k2")
     ->check(CLI::IsMember({"mean", "gaussian", "k1", "k2"}))
     ->capture_default_str();
-  cmd->add_option("--colormap", o->colormap, "colour map: jet, viridis, coolwarm (diverging) or gray")
-    ->check(CLI::IsMember({"jet", "viridis", "coolwarm", "diverging", "gray"}))
+  std::vector<std::string> colormaps;
+  for(const auto& n : lapmesh::colormap_names()) colormaps.push_back(n.name);
+  cmd->add_option("--colormap", o->colormap,
+                  "colour map: " + lapmesh::colormap_name_list() + " (coolwarm is diverging, for signed values)")
+    ->check(CLI::IsMember(colormaps))
     ->capture_default_str();
   cmd->add_option("--range", o->range,
                   "colour range: auto ([min, max], symmetric about 0 when the values have both signs) or MIN:MAX")

@@ -7,13 +7,18 @@
 #include <lapmesh/denoising.h>
 #include <lapmesh/io.h>
 
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
 #include <unistd.h>
 
@@ -28,7 +33,8 @@ struct Study_options
   long long iterations = 20;
   std::uint64_t seed = 1;
   double hausdorff_spacing = 1.0;
-  bool restore_volume = false, fixed_operator = false, quiet = false;
+  double progress_interval = 5.0;  // seconds between progress lines when stderr is not a terminal
+  bool restore_volume = false, fixed_operator = false, quiet = false, progress = false, no_progress = false;
 };
 
 std::vector<std::string> split(const std::string& s)
@@ -80,6 +86,89 @@ std::string format(double v)
   return buf;
 }
 
+// Progress on stderr from a watcher thread, so that it shows even while one iteration (a
+// factorisation, a Hausdorff sampling) takes long. On a terminal one line is redrawn in place a
+// few times a second; elsewhere (a log file, a pipe, CI) a full line is written every
+// `interval` seconds.
+class Study_progress
+{
+public:
+  Study_progress(bool terminal, double interval, std::size_t total_runs, std::string unit)
+      : m_terminal(terminal), m_interval(terminal ? 0.25 : interval), m_unit(std::move(unit)),
+        m_start(Clock::now())
+  {
+    m_state.total_runs = total_runs;
+    m_watcher = std::thread([this] { watch(); });
+  }
+  ~Study_progress() { stop(false); }
+  Study_progress(const Study_progress&) = delete;
+  Study_progress& operator=(const Study_progress&) = delete;
+
+  void update(const lapmesh::Denoising_progress& p)
+  {
+    std::lock_guard<std::mutex> lock(m_mutex);
+    m_state = p;
+    m_started = true;
+  }
+  /// Stops the watcher; on success, a last line with the total time.
+  void stop(bool success)
+  {
+    {
+      std::lock_guard<std::mutex> lock(m_mutex);
+      if(m_stopped) return;
+      m_stopped = true;
+    }
+    m_wake.notify_all();
+    m_watcher.join();
+    if(m_terminal) std::fprintf(stderr, "\r%-100s\r", "");
+    if(success)
+      std::fprintf(stderr, "denoise-study: %zu runs done in %.1f s\n", m_state.total_runs, seconds());
+    std::fflush(stderr);
+  }
+
+private:
+  using Clock = std::chrono::steady_clock;
+  double seconds() const { return std::chrono::duration<double>(Clock::now() - m_start).count(); }
+
+  std::string describe() const  // under the lock
+  {
+    char buf[320];
+    if(!m_started) {
+      std::snprintf(buf, sizeof buf, "denoise-study: 0/%zu runs done, %.0f s; measuring the noisy mesh and its bound",
+                    m_state.total_runs, seconds());
+      return buf;
+    }
+    const auto& p = m_state;
+    std::snprintf(buf, sizeof buf, "denoise-study: %zu/%zu runs done, %.0f s; now level %g, %s %s, lambda %g %s, iteration %d/%d",
+                  p.runs_done, p.total_runs, seconds(), p.noise_level, lapmesh::to_string(p.scheme),
+                  lapmesh::to_string(p.laplacian), p.time_step, m_unit.c_str(), p.iteration, p.iterations);
+    return buf;
+  }
+
+  void watch()
+  {
+    std::unique_lock<std::mutex> lock(m_mutex);
+    while(!m_stopped) {
+      m_wake.wait_for(lock, std::chrono::duration<double>(m_interval), [this] { return m_stopped; });
+      if(m_stopped) break;
+      const std::string line = describe();
+      if(m_terminal) std::fprintf(stderr, "\r%-100s", line.c_str());
+      else std::fprintf(stderr, "%s\n", line.c_str());
+      std::fflush(stderr);
+    }
+  }
+
+  const bool m_terminal;
+  const double m_interval;
+  const std::string m_unit;
+  const Clock::time_point m_start;
+  std::mutex m_mutex;
+  std::condition_variable m_wake;
+  lapmesh::Denoising_progress m_state;
+  bool m_started = false, m_stopped = false;
+  std::thread m_watcher;
+};
+
 std::string series_color(lapmesh::Smoothing_scheme s, lapmesh::Laplacian l)
 {
   const bool u = l == lapmesh::Laplacian::uniform;
@@ -113,6 +202,8 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
         final_of_run.label = std::string(lapmesh::to_string(scheme)) + " " + lapmesh::to_string(lap) + ": after " +
                              std::to_string(s.iterations) + " iterations";
         best_of_run.color = final_of_run.color = series_color(scheme, lap);
+        best_of_run.empty_note = "no run stayed finite: see the CSV's error column";
+        final_of_run.empty_note = "no run reached iteration " + std::to_string(s.iterations) + ": see the CSV's error column";
         final_of_run.dashed = true;
         for(double tau : s.time_steps) {
           double run_best = std::numeric_limits<double>::infinity(), run_final = std::nan("");
@@ -134,8 +225,9 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
         by_lambda.series.push_back(final_of_run);
         Plot_series curve;
         curve.color = series_color(scheme, lap);
-        curve.label = std::string(lapmesh::to_string(scheme)) + " " + lapmesh::to_string(lap) + ", lambda " +
-                      (std::isfinite(best_tau) ? format(best_tau) : std::string("-"));
+        curve.label = std::string(lapmesh::to_string(scheme)) + " " + lapmesh::to_string(lap) +
+                      (std::isfinite(best_tau) ? ", lambda " + format(best_tau) : std::string());
+        curve.empty_note = "no run stayed finite: see the CSV's error column";
         for(const auto& r : study.records)
           if(r.noise_level == level && r.scheme == scheme && r.laplacian == lap && r.time_step == best_tau) {
             curve.x.push_back(r.iteration);
@@ -154,10 +246,22 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
   return out.str();
 }
 
+// RFC 4180 quoting: error messages hold commas and may hold quotes; empty stays empty.
+std::string csv_field(const std::string& text)
+{
+  if(text.empty()) return text;
+  std::string quoted = "\"";
+  for(char c : text) {
+    if(c == '"') quoted += '"';
+    quoted += (c == '\n' || c == '\r') ? ' ' : c;
+  }
+  return quoted + '"';
+}
+
 void write_csv(std::ostream& out, const lapmesh::Denoising_study& study, const std::string& unit)
 {
   out << "noise_level,sigma,scheme,laplacian,lambda_" << unit
-      << ",lambda,stability_bound,iteration,rms_distance,hausdorff_distance,normal_angle_error_deg,volume_change,status\n";
+      << ",lambda,stability_bound,iteration,rms_distance,hausdorff_distance,normal_angle_error_deg,volume_change,status,error\n";
   for(const auto& r : study.records) {
     lapmesh::io::put_double(out, r.noise_level);
     out << ',';
@@ -176,7 +280,7 @@ void write_csv(std::ostream& out, const lapmesh::Denoising_study& study, const s
     lapmesh::io::put_double(out, r.deviation.normal_angle_error);
     out << ',';
     lapmesh::io::put_double(out, r.deviation.volume_change);
-    out << ',' << lapmesh::to_string(r.status) << '\n';
+    out << ',' << lapmesh::to_string(r.status) << ',' << csv_field(r.message) << '\n';
   }
 }
 
@@ -204,13 +308,26 @@ void run(const Study_options& o)
   check_output_path(o.output, {"csv"});
   if(!o.plot.empty()) check_output_path(o.plot, {"svg"});
 
+  if(!(o.progress_interval > 0) || !std::isfinite(o.progress_interval))
+    throw Failure(o.input + ": --progress-interval must be a positive number of seconds");
+
   const Mesh mesh = load_mesh(o.input);
-  const bool tty = isatty(STDERR_FILENO) && !o.quiet;
-  if(tty)
-    s.progress = [](std::size_t done, std::size_t total) {
-      std::cerr << "\rdenoise-study: run " << done << '/' << total << (done == total ? "\n" : "") << std::flush;
-    };
-  const lapmesh::Denoising_study study = or_fail(o.input, [&] { return lapmesh::run_denoising_study(mesh, s); });
+  // Progress by default (a study runs for minutes), off with --quiet unless asked for.
+  const bool show_progress = o.progress || (!o.no_progress && !o.quiet);
+  std::unique_ptr<Study_progress> progress;
+  if(show_progress) {
+    const std::size_t total = s.noise_levels.size() * s.schemes.size() * s.laplacians.size() * s.time_steps.size();
+    progress = std::make_unique<Study_progress>(isatty(STDERR_FILENO), o.progress_interval, total, o.lambda_unit);
+    s.progress = [&progress](const lapmesh::Denoising_progress& p) { progress->update(p); };
+  }
+  lapmesh::Denoising_study study;
+  try {
+    study = or_fail(o.input, [&] { return lapmesh::run_denoising_study(mesh, s); });
+  } catch(...) {
+    if(progress) progress->stop(false);
+    throw;
+  }
+  if(progress) progress->stop(true);
 
   // Render everything first, then write: no output at all when something fails.
   std::string plot;
@@ -231,12 +348,33 @@ void run(const Study_options& o)
       const auto best = study.best(level, scheme);
       if(!best) {
         std::cout << "no run stayed bounded\n";
-        continue;
+      } else {
+        std::cout << "best " << lapmesh::to_string(best->laplacian) << " lambda " << best->time_step << " "
+                  << o.lambda_unit << " (" << best->lambda << "), " << best->iteration
+                  << " iteration(s): RMS " << best->deviation.rms_distance << " (noisy " << noisy << "), Hausdorff "
+                  << best->deviation.hausdorff_distance << ", normal error " << best->deviation.normal_angle_error
+                  << " deg\n";
+        // The best run is the least bad one: it can still be further from the clean mesh than
+        // the noisy input was (lambdas too large for the noise, or no noise at all).
+        if(!(best->deviation.rms_distance < noisy))
+          std::cout << "  worse than the noisy input: no " << lapmesh::to_string(scheme)
+                    << " run lowered the RMS distance below the noisy mesh's " << noisy
+                    << " (try smaller --lambdas or fewer --iterations)\n";
       }
-      std::cout << "best " << lapmesh::to_string(best->laplacian) << " lambda " << best->time_step << " " << o.lambda_unit
-                << " (" << best->lambda << "), " << best->iteration << " iteration(s): RMS " << best->deviation.rms_distance
-                << " (noisy " << noisy << "), Hausdorff " << best->deviation.hausdorff_distance << ", normal error "
-                << best->deviation.normal_angle_error << " deg\n";
+      // Runs that stopped early, and why (the CSV's error column holds every reason).
+      std::size_t runs = 0, stopped = 0;
+      std::string first_reason;
+      for(const auto& r : study.records)
+        if(r.noise_level == level && r.scheme == scheme && r.iteration == s.iterations) {
+          ++runs;
+          if(r.status != lapmesh::Run_status::ok) {
+            ++stopped;
+            if(first_reason.empty()) first_reason = std::string(lapmesh::to_string(r.laplacian)) + " lambda " + format(r.time_step) + ": " + r.message;
+          }
+        }
+      if(stopped > 0)
+        std::cout << "  " << stopped << " of " << runs << " runs stopped early (failed or diverged; the reason is in the "
+                  << "CSV's error column), e.g. " << first_reason << '\n';
     }
   }
 }
@@ -255,7 +393,10 @@ void register_denoise_study(CLI::App& app)
     "(level, scheme, laplacian, lambda, iteration), iteration 0 being the noisy mesh. Runs whose RMS error\n"
     "exceeds one bbox diagonal stop as 'diverged'. Prints the best lambda and iteration count per level and\n"
     "scheme (smallest RMS distance). --lambda-unit edge2: lambda x mean edge length^2 of the noisy mesh\n"
-    "(cotangent; the uniform Laplacian's lambda is dimensionless); bound: lambda x the explicit stability bound.\n");
+    "(cotangent; the uniform Laplacian's lambda is dimensionless); bound: lambda x the explicit stability bound.\n"
+    "Runs stopped by an error are 'failed'; the CSV's last column, error, says why (e.g. a face the flow\n"
+    "collapsed). The summary says when even the best run is further from the clean mesh than the noisy one.\n"
+    "Progress goes to stderr: redrawn on a terminal, otherwise one line every --progress-interval seconds.\n");
   add_input_output(*cmd, o->input, o->output, "output table (.csv)");
   cmd->add_option("--levels", o->levels, "comma-separated noise levels (>= 0)")->capture_default_str();
   cmd->add_option("--schemes", o->schemes, "comma-separated: explicit, implicit, conformal")->capture_default_str();
@@ -275,7 +416,12 @@ void register_denoise_study(CLI::App& app)
   cmd->add_option("--hausdorff-spacing", o->hausdorff_spacing, "Hausdorff sampling grid spacing, in mean edge lengths")
     ->capture_default_str();
   cmd->add_option("--plot", o->plot, "also write an SVG plot of the error vs iteration and vs lambda");
-  cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
+  cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success (and no progress, unless --progress)");
+  auto* with = cmd->add_flag("--progress", o->progress, "show progress on stderr (the default, except with --quiet)");
+  cmd->add_flag("--no-progress", o->no_progress, "show no progress")->excludes(with);
+  cmd->add_option("--progress-interval", o->progress_interval,
+                  "seconds between progress lines when stderr is not a terminal")
+    ->capture_default_str();
   cmd->callback([o] { run(*o); });
 }
 

@@ -10,12 +10,16 @@
 
 namespace lapmesh_cli {
 
+// Defined in cmd_spectrum.cpp beside spectral_k_from: an integer option read from its text,
+// checked against [lo, hi]; the message quotes the text as given and names the range.
+long long parse_count_option(const std::string& input, const std::string& option, const std::string& text,
+                             long long lo, long long hi, const std::string& range_note);
+
 namespace {
 
 struct Reconstruct_options
 {
-  std::string input, output, laplacian = "cotangent", area = "barycentric", k, save_basis, load_basis;
-  long long basis_size = 0;
+  std::string input, output, laplacian = "cotangent", area = "barycentric", k, save_basis, load_basis, basis_size;
   bool quiet = false;
 };
 
@@ -57,7 +61,9 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
       throw Failure(o.input + ": -k " + o.k + " is out of range: the basis " + o.load_basis + " holds " +
                     std::to_string(basis.size()) + " eigenpairs");
   } else {
-    const long long m = std::max(k, std::min(o.basis_size, n));
+    const long long basis_size =
+      o.basis_size.empty() ? 0 : parse_count_option(o.input, "--basis-size", o.basis_size, 0, n, ", the number of vertices");
+    const long long m = std::max(k, basis_size);
     basis = compute_spectral_basis(o.input, mesh, m, o.laplacian, o.area);
   }
   auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
@@ -90,8 +96,8 @@ void register_reconstruct(CLI::App& app)
   add_area_option(*cmd, o->area);
   cmd->add_option("--save-basis", o->save_basis, "write the computed eigenpairs to this file");
   cmd->add_option("--load-basis", o->load_basis, "read the eigenpairs from this file instead of computing them");
-  cmd->add_option("--basis-size", o->basis_size, "compute this many eigenpairs (at least k), e.g. for --save-basis")
-    ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--basis-size", o->basis_size,
+                  "compute this many eigenpairs (at least k, at most the number of vertices), e.g. for --save-basis");
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
   cmd->callback([o, cmd] { run(*o, cmd->count("--laplacian") > 0, cmd->count("--area") > 0); });
 }

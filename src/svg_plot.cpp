@@ -149,14 +149,22 @@ void write_svg_plot(std::ostream& out, const std::string& title, const std::vect
         << "</text>\n";
     out << "<clipPath id=\"clip" << k << "\"><rect x=\"" << num(x0) << "\" y=\"" << num(y0) << "\" width=\""
         << num(x1 - x0) << "\" height=\"" << num(y1 - y0) << "\"/></clipPath>\n<g clip-path=\"url(#clip" << k << ")\">\n";
-    for(const auto& s : p.series) {
+    // What each series actually draws, so that its legend entry shows the same.
+    std::vector<bool> draws_line(p.series.size(), false), draws_markers(p.series.size(), false);
+    for(std::size_t k_series = 0; k_series < p.series.size(); ++k_series) {
+      const auto& s = p.series[k_series];
       const std::string dash = s.dashed ? " stroke-dasharray=\"6 3\"" : "";
+      out << "<g class=\"series\" data-series=\"" << k_series << "\">\n";
       std::string points;
+      std::size_t run_length = 0;
       auto flush = [&] {
-        if(!points.empty())
+        if(run_length >= 2) {  // a single point is a marker, not a line
           out << "<polyline fill=\"none\" stroke=\"" << s.color << "\" stroke-width=\"1.8\"" << dash << " points=\""
               << points << "\"/>\n";
+          draws_line[k_series] = true;
+        }
         points.clear();
+        run_length = 0;
       };
       for(std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
         if(!ax.usable(s.x[i]) || !ay.usable(s.y[i])) {
@@ -164,20 +172,31 @@ void write_svg_plot(std::ostream& out, const std::string& title, const std::vect
           continue;
         }
         points += num(px(s.x[i])) + "," + num(py(s.y[i])) + " ";
+        ++run_length;
       }
       flush();
       for(std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i)
-        if(ax.usable(s.x[i]) && ay.usable(s.y[i]))
+        if(ax.usable(s.x[i]) && ay.usable(s.y[i])) {
           out << "<circle cx=\"" << num(px(s.x[i])) << "\" cy=\"" << num(py(s.y[i])) << "\" r=\"2\" fill=\"" << s.color
               << "\"/>\n";
+          draws_markers[k_series] = true;
+        }
+      out << "</g>\n";
     }
     out << "</g>\n";
     for(std::size_t i = 0; i < p.series.size(); ++i) {
       const auto& s = p.series[i];
       const double ly = y1 + 46 + legend_line * double(i);
-      out << "<line x1=\"" << num(x0) << "\" y1=\"" << num(ly - 4) << "\" x2=\"" << num(x0 + 24) << "\" y2=\""
-          << num(ly - 4) << "\" stroke=\"" << s.color << "\" stroke-width=\"2\"" << (s.dashed ? " stroke-dasharray=\"6 3\"" : "")
-          << "/>\n<text x=\"" << num(x0 + 30) << "\" y=\"" << num(ly) << "\">" << escape(s.label) << "</text>\n";
+      out << "<g class=\"legend-entry\" data-series=\"" << i << "\">\n";
+      if(draws_line[i])
+        out << "<line x1=\"" << num(x0) << "\" y1=\"" << num(ly - 4) << "\" x2=\"" << num(x0 + 24) << "\" y2=\""
+            << num(ly - 4) << "\" stroke=\"" << s.color << "\" stroke-width=\"2\""
+            << (s.dashed ? " stroke-dasharray=\"6 3\"" : "") << "/>\n";
+      if(draws_markers[i])
+        out << "<circle cx=\"" << num(x0 + 12) << "\" cy=\"" << num(ly - 4) << "\" r=\"2\" fill=\"" << s.color << "\"/>\n";
+      const bool empty = !draws_line[i] && !draws_markers[i];
+      out << "<text x=\"" << num(x0 + 30) << "\" y=\"" << num(ly) << "\"" << (empty ? " fill=\"#777\"" : "") << ">"
+          << escape(empty ? s.label + " (" + s.empty_note + ")" : s.label) << "</text>\n</g>\n";
     }
     out << "</g>\n";
   }

@@ -17,6 +17,9 @@ struct Plot_series
   std::vector<double> x, y;
   std::string color = "#1f77b4";
   bool dashed = false;
+  /// Appended to the legend label when no point can be drawn (the legend then shows no
+  /// line for it, since the axes hold none).
+  std::string empty_note = "no finite values";
 };
 
 struct Plot_panel
@@ -27,7 +30,10 @@ struct Plot_panel
 };
 
 /// Writes the panels in a grid of `columns` columns with an overall title. Each panel gets
-/// its own legend (below the axes).
+/// its own legend (below the axes). Series k of a panel is drawn in <g class="series"
+/// data-series="k"> and its legend entry is <g class="legend-entry" data-series="k">; the
+/// entry's sample shows a line only when the series draws one (two consecutive drawable
+/// points) and a marker only when it draws markers.
 void write_svg_plot(std::ostream& out, const std::string& title, const std::vector<Plot_panel>& panels, int columns);
 
 } // namespace lapmesh_cli

@@ -2,6 +2,7 @@
 // and every bad input (one stderr line naming the file, non-zero exit, no output file).
 #include "test_helpers.h"
 
+#include <lapmesh/colormap.h>
 #include <lapmesh/curvature.h>
 #include <lapmesh/io.h>
 
@@ -178,4 +179,94 @@ TEST(Cli, RealMeshFromCgalDataSet)
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("2904 vertices, 5804 faces"), std::string::npos) << r.out;
   EXPECT_EQ(count_lines(slurp(tmp("cow.csv"))), 2905u);
+}
+
+// ---- messages ----------------------------------------------------------------------------
+
+TEST(CliMessages, HugeCountsAreReportedAsGivenWithTheValidRange)
+{
+  const std::string in = write_mesh_file("msg_sphere.off", lapmesh::icosphere(1));  // 42 vertices
+  const std::string out = tmp("msg_never.csv"), mesh_out = tmp("msg_never.off");
+  struct Case
+  {
+    std::string args, expected;
+  };
+  const std::vector<Case> cases = {
+    {"spectrum " + in + " -o " + out + " -k 18446744073709551615",
+     "-k '18446744073709551615' is out of range (expected 1 <= k <= 42, the number of vertices)"},
+    {"reconstruct " + in + " -o " + mesh_out + " -k 18446744073709551615",
+     "-k '18446744073709551615' is out of range (expected 1 <= k <= 42, the number of vertices)"},
+    {"spectrum " + in + " -o " + out + " -k 99999999999999999999999999",
+     "-k '99999999999999999999999999' is out of range (expected 1 <= k <= 42"},
+    {"spectrum " + in + " -o " + out + " -k -1", "-k '-1' is out of range (expected 1 <= k <= 42"},
+    {"spectrum " + in + " -o " + out + " -k 43", "-k '43' is out of range (expected 1 <= k <= 42"},
+    {"spectrum " + in + " -o " + out + " -k 0", "-k '0' is out of range (expected 1 <= k <= 42"},
+    {"spectrum " + in + " -o " + out + " -k 5x", "-k '5x' is not an integer (expected 1 <= k <= 42"},
+    {"spectrum " + in + " -o " + out + " -k ' 5'", "-k ' 5' is not an integer (expected 1 <= k <= 42"},
+    {"reconstruct " + in + " -o " + mesh_out + " -k 5 --basis-size 18446744073709551615",
+     "--basis-size '18446744073709551615' is out of range (expected 0 <= basis-size <= 42, the number of vertices)"},
+    {"reconstruct " + in + " -o " + mesh_out + " -k 5 --basis-size -1",
+     "--basis-size '-1' is out of range (expected 0 <= basis-size <= 42"},
+  };
+  for(const Case& c : cases) {
+    const Cli_run r = lapmesh_cli(c.args);
+    EXPECT_EQ(r.status, 1) << c.args;
+    EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+    EXPECT_NE(r.err.find(in + ": " + c.expected), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_EQ(r.err.find("-1)"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out) || std::filesystem::exists(mesh_out)) << c.args;
+  }
+  // The largest valid values still work.
+  const Cli_run r = lapmesh_cli("spectrum " + in + " -o " + out + " -k 0042 -q");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(count_lines(slurp(out)), 43u);
+  std::remove(out.c_str());
+}
+
+TEST(CliMessages, ChoiceErrorsListExactlyTheDocumentedNames)
+{
+  const std::string in = write_mesh_file("msg_sphere.off", lapmesh::icosphere(1));
+  const std::string out = tmp("msg_never.ply");
+  // --quantity: four names, none empty.
+  Cli_run r = lapmesh_cli("curvature " + in + " -o " + out + " --quantity bogus");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("bogus not in {mean,gaussian,k1,k2}"), std::string::npos) << r.err;
+  // --colormap: the names of lapmesh::colormap_names(), which doc/cli.md lists too.
+  const std::string names = lapmesh::colormap_name_list(",");
+  EXPECT_EQ(names, "jet,viridis,coolwarm,gray");
+  r = lapmesh_cli("curvature " + in + " -o " + out + " --colormap bogus");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("bogus not in {" + names + "}"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("diverging"), std::string::npos) << r.err;
+  const std::string cli_doc = slurp(std::string(LAPMESH_DATA_DIR) + "/../doc/cli.md");
+  EXPECT_NE(cli_doc.find("[--colormap " + lapmesh::colormap_name_list("|") + "]"), std::string::npos);
+  EXPECT_EQ(cli_doc.find("diverging|"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(out));
+  // Every listed name is accepted.
+  for(const auto& n : lapmesh::colormap_names()) {
+    r = lapmesh_cli("curvature " + in + " -o " + out + " -q --colormap " + n.name);
+    EXPECT_EQ(r.status, 0) << n.name << ": " << r.err;
+  }
+  std::remove(out.c_str());
+}
+
+TEST(CliMessages, ACollapseDuringSmoothingNamesTheIteration)
+{
+  // The cotangent flow (operator rebuilt every step) pinches the cow's thin parts; the input
+  // itself is valid, so the message must say when the face collapsed.
+  const std::string in = cgal_mesh("cow.off");
+  const std::string out = tmp("msg_never_smoothed.off");
+  const Cli_run r = lapmesh_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 1e-5 --iterations 40");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+  const std::string prefix = "lapmesh: " + in + ": iteration ";
+  ASSERT_EQ(r.err.rfind(prefix, 0), 0u) << r.err;
+  const int iteration = std::stoi(r.err.substr(prefix.size()));
+  EXPECT_GE(iteration, 2);
+  EXPECT_LT(iteration, 40);
+  EXPECT_NE(r.err.find(": face "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" has zero area (the flow collapsed it"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
 }

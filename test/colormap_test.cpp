@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 TEST(Colormap, EndpointsAndMidpoints)
 {
   using lapmesh::Colormap;
@@ -87,4 +89,21 @@ TEST(Colormap, SymmetricRange)
   EXPECT_EQ(zero.min, -0.5);
   EXPECT_EQ(zero.max, 0.5);
   EXPECT_THROW(lapmesh::symmetric_range(v, 50), std::invalid_argument);
+}
+
+TEST(Colormap, OneTableOfNames)
+{
+  // Every map once, each name parsing to its map and back; the list the CLI prints.
+  std::set<lapmesh::Colormap> maps;
+  for(const auto& n : lapmesh::colormap_names()) {
+    EXPECT_TRUE(maps.insert(n.map).second) << n.name;
+    EXPECT_EQ(lapmesh::parse_colormap(n.name), n.map) << n.name;
+    EXPECT_STREQ(lapmesh::to_string(n.map), n.name);
+  }
+  EXPECT_EQ(maps.size(), 4u);
+  EXPECT_EQ(lapmesh::colormap_name_list(), "jet, viridis, coolwarm, gray");
+  EXPECT_EQ(lapmesh::colormap_name_list("|"), "jet|viridis|coolwarm|gray");
+  // Older spellings are still read, but they are not names of the table.
+  EXPECT_EQ(lapmesh::parse_colormap("grey"), lapmesh::Colormap::gray);
+  EXPECT_EQ(lapmesh::colormap_name_list().find("diverging"), std::string::npos);
 }

@@ -328,3 +328,259 @@ TEST(DenoisingCli, WritesOneRowPerIterationAndReportsTheBest)
   EXPECT_EQ(plot.rfind("<svg", 0), 0u);
   EXPECT_NE(plot.find("implicit cotangent"), std::string::npos);
 }
+
+// ---- why runs fail, and what the command line says about it ---------------------------
+
+namespace {
+
+// A thin torus (tube radius 0.08, ring radius 1): under the implicit cotangent flow the tube
+// collapses onto its core circle long before the ring moves, as the cow's horns and legs do,
+// so its faces become nearly segments within a few steps of lambda = 0.01 and the
+// factorisation fails (CHOLMOD's "not positive definite", reported, not printed).
+Mesh thin_torus() { return to_mesh(lapmesh::torus(48, 8, 1.0, 0.08)); }
+
+std::string write_thin_torus(const std::string& name)
+{
+  const std::string path = lapmesh_test::scratch_dir() + "/" + name;
+  const auto [P, tris] = lapmesh::io::mesh_arrays(thin_torus());
+  lapmesh::io::write_mesh(path, P, tris);
+  return path;
+}
+
+// The fields of a CSV line (RFC 4180 quotes).
+std::vector<std::string> csv_fields(const std::string& line)
+{
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for(std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if(quoted) {
+      if(c == '"' && i + 1 < line.size() && line[i + 1] == '"') out.back() += '"', ++i;
+      else if(c == '"') quoted = false;
+      else out.back() += c;
+    } else if(c == '"') {
+      quoted = true;
+    } else if(c == ',') {
+      out.emplace_back();
+    } else {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+} // namespace
+
+TEST(Denoising, AFailedRunRecordsWhyAndTheIterationThatCollapsedAFace)
+{
+  const Mesh clean = thin_torus();
+  lapmesh::Denoising_study_settings s;
+  s.noise_levels = {0.0};
+  s.schemes = {lapmesh::Smoothing_scheme::implicit_euler};
+  s.laplacians = {lapmesh::Laplacian::cotangent};
+  s.unit = lapmesh::Time_step_unit::absolute;
+  s.time_steps = {0.01};
+  s.iterations = 12;
+  const lapmesh::Denoising_study study = lapmesh::run_denoising_study(clean, s);
+  ASSERT_EQ(study.records.size(), 13u);
+
+  // The same flow run directly: the engine names the iteration and the collapsed face.
+  Mesh direct = clean;
+  std::string direct_error;
+  try {
+    lapmesh::smooth_laplacian_implicit(direct, 0.01, CGAL::parameters::number_of_iterations(12));
+  } catch(const std::exception& e) {  // zero area (Mesh_error) or a failed factorisation (Numerical_error)
+    direct_error = e.what();
+  }
+  ASSERT_EQ(direct_error.rfind("iteration ", 0), 0u) << direct_error;
+  EXPECT_NE(direct_error.find("the flow collapsed it"), std::string::npos) << direct_error;
+  const int failed_at = std::stoi(direct_error.substr(10));
+  EXPECT_GE(failed_at, 2);
+  EXPECT_LT(failed_at, 12);
+
+  for(const auto& r : study.records) {
+    if(r.iteration <= failed_at) {
+      // Measured before the collapse was detected: ok, finite, no message.
+      EXPECT_EQ(r.status, lapmesh::Run_status::ok) << r.iteration;
+      EXPECT_TRUE(std::isfinite(r.deviation.rms_distance)) << r.iteration;
+      EXPECT_EQ(r.message, "") << r.iteration;
+    } else {
+      EXPECT_EQ(r.status, lapmesh::Run_status::failed) << r.iteration;
+      EXPECT_EQ(r.message, direct_error) << r.iteration;
+      EXPECT_TRUE(std::isnan(r.deviation.rms_distance)) << r.iteration;
+    }
+  }
+}
+
+// Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
+// sum of positive semidefinite element matrices. A one-step flow on a mesh full of obtuse
+// triangles factorises at any lambda.
+TEST(Denoising, ImplicitSystemStaysPositiveDefiniteWithNegativeWeightsAtHugeLambda)
+{
+  Mesh m = jitter(to_mesh(lapmesh::icosphere(3)), 0.06, 5);
+  const auto pencil = lapmesh::laplacian_pencil(m);
+  int negative_weights = 0;
+  for(int k = 0; k < pencil.stiffness.outerSize(); ++k)
+    for(Eigen::SparseMatrix<double>::InnerIterator it(pencil.stiffness, k); it; ++it)
+      if(it.row() != it.col() && it.value() < 0) ++negative_weights;
+  ASSERT_GT(negative_weights, 0);
+  for(double lambda : {1.0, 1e3, 1e6}) {
+    Mesh smoothed = m;
+    EXPECT_NO_THROW(lapmesh::smooth_laplacian_implicit(smoothed, lambda, CGAL::parameters::number_of_iterations(1))) << lambda;
+    for(auto v : vertices(smoothed)) ASSERT_TRUE(std::isfinite(smoothed.point(v).x())) << lambda;
+  }
+}
+
+#ifdef LAPMESH_HAS_CHOLMOD
+// CHOLMOD prints its own warnings unless told not to; lapmesh reports them in its exceptions.
+TEST(Denoising, CholmodFailuresAreReportedNotPrinted)
+{
+  Eigen::SparseMatrix<double> A(3, 3);  // lower triangle of an indefinite matrix
+  A.insert(0, 0) = 1.0;
+  A.insert(1, 1) = -1.0;
+  A.insert(2, 2) = 1.0;
+  A.insert(2, 0) = 0.5;
+  A.makeCompressed();
+  lapmesh::internal::Spd_direct_solver solver(true);
+  ASSERT_STREQ(solver.name(), "cholmod-supernodal");
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  solver.analyze(A, 1);
+  const bool ok = solver.factorize(A);
+  std::fflush(nullptr);
+  const std::string out = testing::internal::GetCapturedStdout(), err = testing::internal::GetCapturedStderr();
+  EXPECT_FALSE(ok);
+  EXPECT_EQ(out, "");
+  EXPECT_EQ(err, "");
+  EXPECT_NE(solver.failure().find("not positive definite"), std::string::npos) << solver.failure();
+}
+#endif
+
+TEST(DenoisingCli, FailedRunsSayWhyInTheCsvAndTheSummary)
+{
+  const std::string in = write_thin_torus("thin_torus.off");
+  const std::string out = lapmesh_test::scratch_dir() + "/fail.csv";
+  // Level 0: noise would break the tube's symmetry and delay the collapse.
+  const Cli_result r = run_study_cli(in + " -o " + out + " --levels 0 --schemes implicit --laplacians uniform,cotangent "
+                                     "--lambda-unit absolute --lambdas 0.01 --iterations 12");
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream csv(slurp(out));
+  std::string line;
+  std::getline(csv, line);
+  const std::vector<std::string> header = csv_fields(line);
+  ASSERT_EQ(header.size(), 14u) << line;
+  EXPECT_EQ(header[12], "status");
+  EXPECT_EQ(header[13], "error");
+  int failed_rows = 0, ok_rows = 0;
+  while(std::getline(csv, line)) {
+    const std::vector<std::string> f = csv_fields(line);
+    ASSERT_EQ(f.size(), 14u) << line;
+    if(f[12] == "ok") {
+      ++ok_rows;
+      EXPECT_EQ(f[13], "") << line;
+    } else {
+      ++failed_rows;
+      EXPECT_EQ(f[12], "failed") << line;
+      EXPECT_EQ(f[3], "cotangent") << line;  // the uniform flow keeps the tube's shape
+      EXPECT_EQ(f[13].rfind("iteration ", 0), 0u) << line;
+      EXPECT_NE(f[13].find("the flow collapsed it"), std::string::npos) << line;
+    }
+  }
+  EXPECT_GT(failed_rows, 0);
+  EXPECT_GT(ok_rows, 13);
+  EXPECT_NE(r.out.find("1 of 2 runs stopped early"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cotangent lambda 0.01: iteration "), std::string::npos) << r.out;
+}
+
+TEST(DenoisingCli, LegendEntriesMatchThePlottedSeries)
+{
+  // The cotangent runs fail before the last iteration: their "after N iterations" series has
+  // no point, and its legend entry must show no line.
+  const std::string in = write_thin_torus("thin_torus.off");
+  const std::string out = lapmesh_test::scratch_dir() + "/legend.csv", svg = lapmesh_test::scratch_dir() + "/legend.svg";
+  const Cli_result r = run_study_cli(in + " -o " + out + " --plot " + svg + " --levels 0 --schemes implicit "
+                                     "--laplacians uniform,cotangent --lambda-unit absolute --lambdas 0.01,0.03 --iterations 12");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string plot = slurp(svg);
+  auto blocks = [&](const std::string& cls) {
+    std::vector<std::string> out;
+    const std::string open = "<g class=\"" + cls + "\"";
+    for(std::size_t p = plot.find(open); p != std::string::npos; p = plot.find(open, p + 1))
+      out.push_back(plot.substr(p, plot.find("</g>", p) - p));
+    return out;
+  };
+  const std::vector<std::string> series = blocks("series"), legend = blocks("legend-entry");
+  ASSERT_EQ(series.size(), legend.size());
+  ASSERT_EQ(series.size(), 2u + 4u);  // one level: 2 curves (top), 2 x 2 by lambda (bottom)
+  int empty_entries = 0;
+  for(std::size_t i = 0; i < series.size(); ++i) {
+    const bool line = series[i].find("<polyline") != std::string::npos;
+    const bool markers = series[i].find("<circle") != std::string::npos;
+    EXPECT_EQ(legend[i].find("<line") != std::string::npos, line) << legend[i];
+    EXPECT_EQ(legend[i].find("<circle") != std::string::npos, markers) << legend[i];
+    if(!line && !markers) {
+      ++empty_entries;
+      EXPECT_NE(legend[i].find("no run reached iteration 12"), std::string::npos) << legend[i];
+    }
+    // The colour and dash of the sample are the series' own.
+    const std::size_t stroke = series[i].find("stroke=\"");
+    if(line) EXPECT_NE(legend[i].find(series[i].substr(stroke, 16)), std::string::npos) << legend[i];
+    if(line) EXPECT_EQ(legend[i].find("stroke-dasharray") != std::string::npos,
+                       series[i].find("stroke-dasharray") != std::string::npos) << legend[i];
+  }
+  EXPECT_EQ(empty_entries, 1);  // implicit cotangent after 12 iterations
+}
+
+TEST(DenoisingCli, SaysWhenTheBestRunIsWorseThanTheNoisyInput)
+{
+  const std::string in = lapmesh_test::scratch_dir() + "/sphere.off";
+  {
+    const auto [P, tris] = lapmesh::io::mesh_arrays(to_mesh(lapmesh::icosphere(2)));
+    lapmesh::io::write_mesh(in, P, tris);
+  }
+  const std::string out = lapmesh_test::scratch_dir() + "/worse.csv";
+  // Level 0: the "noisy" mesh is the clean one, so every smoothing step moves away from it.
+  Cli_result r = run_study_cli(in + " -o " + out + " --levels 0 --schemes implicit --laplacians uniform --lambdas 0.1 "
+                               "--iterations 2");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("level 0, implicit: best uniform"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  worse than the noisy input: no implicit run lowered the RMS distance below the noisy mesh's 0"),
+            std::string::npos)
+    << r.out;
+  // The settings of StudyRecordsEveryIterationAndFindsAFiniteBestLambda, whose best run
+  // lowers the RMS distance below 0.8 x the noisy mesh's.
+  r = run_study_cli(in + " -o " + out + " --levels 0.1 --direction normal --restore-volume --seed 3 --schemes implicit "
+                    "--lambdas 0.1,1,100 --iterations 4");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("level 0.1, implicit: best "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("worse than the noisy input"), std::string::npos) << r.out;
+}
+
+TEST(DenoisingCli, ProgressLinesWhenStderrIsNotATerminal)
+{
+  const std::string in = write_thin_torus("thin_torus.off");
+  const std::string out = lapmesh_test::scratch_dir() + "/progress.csv";
+  const std::string args = in + " -o " + out + " --levels 0.01 --schemes explicit,implicit --laplacians uniform "
+                           "--lambdas 0.1,0.3 --iterations 20 --progress-interval 0.01";
+  Cli_result r = run_study_cli(args);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos);  // whole lines, not a redrawn terminal line
+  std::istringstream lines(r.err);
+  std::string line;
+  int periodic = 0, final_lines = 0;
+  while(std::getline(lines, line)) {
+    ASSERT_EQ(line.rfind("denoise-study: ", 0), 0u) << line;
+    if(line.find("runs done in") != std::string::npos) ++final_lines;
+    else if(line.find("/4 runs done, ") != std::string::npos) ++periodic;
+    else ADD_FAILURE() << line;
+  }
+  EXPECT_EQ(final_lines, 1);
+  EXPECT_GE(periodic, 2) << r.err;
+  // Off with --no-progress and with --quiet; --progress brings it back under --quiet.
+  EXPECT_EQ(run_study_cli(args + " --no-progress").err, "");
+  EXPECT_EQ(run_study_cli(args + " -q").err, "");
+  r = run_study_cli(args + " -q --progress");
+  EXPECT_EQ(r.out, "");
+  EXPECT_NE(r.err.find("runs done in"), std::string::npos) << r.err;
+  EXPECT_NE(run_study_cli(args + " --progress --no-progress").status, 0);
+}

@@ -1,7 +1,8 @@
 // lapmesh — colour maps for per-vertex scalars, with automatic and explicit ranges.
 //
 // Maps: jet (the seed report's), viridis (perceptually uniform), coolwarm (diverging, for
-// signed values; alias "diverging"), gray. The viridis and coolwarm tables are sampled at
+// signed values), gray. colormap_names() is the one list of their names: the CLI's choices,
+// its error messages and doc/cli.md follow it. The viridis and coolwarm tables are sampled at
 // nine points and interpolated linearly in sRGB, which is within one 8-bit step of the
 // published maps for viridis and close for coolwarm.
 #ifndef LAPMESH_COLORMAP_H
@@ -29,13 +30,46 @@ struct Rgb
   std::uint8_t b = 0; ///< blue
 };
 
-/// @brief returns the colour map named `s` (`jet`, `viridis`, `coolwarm`, `gray`), or nothing.
+/// A colour map and its name.
+struct Colormap_name
+{
+  const char* name; ///< as the CLI and the viewer spell it
+  Colormap map;     ///< the map
+};
+
+/// The colour maps by name, in the order the documentation lists them.
+inline const std::array<Colormap_name, 4>& colormap_names()
+{
+  static const std::array<Colormap_name, 4> names = {
+    {{"jet", Colormap::jet}, {"viridis", Colormap::viridis}, {"coolwarm", Colormap::coolwarm}, {"gray", Colormap::gray}}};
+  return names;
+}
+
+/// The names of colormap_names() joined by `separator` (for option help and error messages).
+inline std::string colormap_name_list(const std::string& separator = ", ")
+{
+  std::string out;
+  for(const auto& n : colormap_names()) out += (out.empty() ? "" : separator) + n.name;
+  return out;
+}
+
+/// The name of a colour map (its entry in colormap_names()).
+inline const char* to_string(Colormap map)
+{
+  for(const auto& n : colormap_names())
+    if(n.map == map) return n.name;
+  return "unknown";
+}
+
+/// @brief returns the colour map named `s` (a name of colormap_names()), or nothing. The
+/// spellings "diverging" and "grey" of earlier versions are still read (as coolwarm and gray)
+/// but are no longer offered or listed.
 inline std::optional<Colormap> parse_colormap(const std::string& s)
 {
-  if(s == "jet") return Colormap::jet;
-  if(s == "viridis") return Colormap::viridis;
-  if(s == "coolwarm" || s == "diverging") return Colormap::coolwarm;
-  if(s == "gray" || s == "grey") return Colormap::gray;
+  for(const auto& n : colormap_names())
+    if(s == n.name) return n.map;
+  if(s == "diverging") return Colormap::coolwarm;
+  if(s == "grey") return Colormap::gray;
   return std::nullopt;
 }
 

@@ -7,7 +7,7 @@
 //                       deterministic grid sampling (vertices, edges and faces) of spacing
 //                       `hausdorff_spacing` x the larger mean edge length of the two meshes
 //   normal_angle_error  mean over vertices of the angle (degrees) between the area-weighted
-//                       vertex normals (SPEC §1: normalised sum of the face cross products)
+//                       vertex normals (the normalised sum of the face cross products)
 //   volume_change       (V - V_ref) / |V_ref| of the enclosed volume; NaN for open meshes
 //
 // The study runs every (noise level, scheme, Laplacian, time step) once for the full number
@@ -197,6 +197,19 @@ Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh&
   return meter.measure(cur.positions);
 }
 
+/// Where a denoising study stands, passed to `Denoising_study_settings::progress`.
+struct Denoising_progress
+{
+  std::size_t runs_done = 0;   ///< runs finished
+  std::size_t total_runs = 0;  ///< levels x schemes x Laplacians x time steps
+  double noise_level = 0;      ///< of the current (or just finished) run
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< of the current run
+  Laplacian laplacian = Laplacian::cotangent;                  ///< of the current run
+  double time_step = 0;  ///< of the current run, in the settings' unit
+  int iteration = 0;     ///< steps measured in the current run
+  int iterations = 0;    ///< steps per run
+};
+
 /// What the denoising study runs. Every combination of level, scheme, Laplacian and time step
 /// is one run of `iterations` steps on the same noisy mesh (per level).
 struct Denoising_study_settings
@@ -215,8 +228,8 @@ struct Denoising_study_settings
   bool restore_volume = false;  ///< closed meshes only
   bool fixed_operator = false;  ///< keep the noisy mesh's operator for all iterations
   double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh
-  /// Called after each run (done, total runs).
-  std::function<void(std::size_t, std::size_t)> progress;
+  /// Called after each measured iteration and after each run (then `runs_done` has grown).
+  std::function<void(const Denoising_progress&)> progress;
 };
 
 /// How a run of the denoising study ended.
@@ -308,7 +321,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
           bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
         } catch(const std::exception& e) {
-          bound_error = e.what();
+          bound_error = std::string("the noisy mesh: ") + e.what();
         }
         for(double tau : s.time_steps) {
           Denoising_record base;
@@ -340,6 +353,14 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           Run_status status = Run_status::ok;
           std::string message;
           int done = 0;
+          Denoising_progress where;
+          where.runs_done = runs_done;
+          where.total_runs = total_runs;
+          where.noise_level = level;
+          where.scheme = scheme;
+          where.laplacian = lap;
+          where.time_step = tau;
+          where.iterations = s.iterations;
           // P is smoothed in place: the callback sees the state after each iteration.
           settings.progress = [&](int it, int) {
             Denoising_record r = base;
@@ -352,10 +373,14 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
               const double nan = std::numeric_limits<double>::quiet_NaN();
               r.deviation = Mesh_deviation{rms, nan, nan, nan};
               r.status = status = Run_status::diverged;
+              r.message = message = "iteration " + std::to_string(it) + ": the RMS distance " +
+                                    (std::isfinite(rms) ? "exceeded one bounding-box diagonal" : "is not finite");
             } else {
               r.deviation = meter.measure(P);
             }
             study.records.push_back(r);
+            where.iteration = it;
+            if(s.progress) s.progress(where);
             if(status != Run_status::ok) throw Stop_run{};
           };
           try {
@@ -382,7 +407,8 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
             study.records.push_back(r);
           }
           ++runs_done;
-          if(s.progress) s.progress(runs_done, total_runs);
+          where.runs_done = runs_done;
+          if(s.progress) s.progress(where);
         }
       }
   }

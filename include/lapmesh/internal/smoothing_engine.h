@@ -21,13 +21,16 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lapmesh {
@@ -243,6 +246,29 @@ private:
   Eigen::Vector3d m_centroid0 = Eigen::Vector3d::Zero();
 };
 
+#ifdef LAPMESH_HAS_CHOLMOD
+/// CHOLMOD's last warning or error on this thread. CHOLMOD reports through a C callback
+/// without user data, so the message is kept per thread until the caller turns it into a
+/// lapmesh exception.
+inline std::string& last_cholmod_message()
+{
+  static thread_local std::string message;
+  return message;
+}
+inline void record_cholmod_message(int status, const char* /*file*/, int /*line*/, const char* message)
+{
+  last_cholmod_message() = std::string(status > 0 ? "warning " : "error ") + std::to_string(status) + ": " +
+                           (message ? message : "(no message)");
+}
+/// CHOLMOD prints its warnings itself (on stdout, by default) unless told not to: lapmesh
+/// reports them in its own exceptions instead.
+inline void route_cholmod_messages(cholmod_common& common)
+{
+  common.print = 0;
+  common.error_handler = &record_cholmod_message;
+}
+#endif
+
 /// Sparse Cholesky of an SPD matrix given by its lower triangle: Eigen's SimplicialLDLT (AMD),
 /// or, when compiled with LAPMESH_HAS_CHOLMOD (and linked with libcholmod), CHOLMOD's
 /// supernodal LL^T (internal/cholmod.h). Ordering: AMD, or CHOLMOD's choice between AMD and
@@ -267,6 +293,7 @@ public:
   {
 #ifdef LAPMESH_HAS_CHOLMOD
     m_cholmod = use_cholmod;
+    route_cholmod_messages(m_chol.cholmod());
 #else
     (void)use_cholmod;
 #endif
@@ -299,19 +326,32 @@ public:
     m_ldlt.analyzePattern(A);
     if(m_ldlt.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
   }
-  /// False if the matrix is not (numerically) positive definite.
+  /// False if the matrix is not (numerically) positive definite; failure() then says why.
   bool factorize(const SpMat& A)
   {
-    if(m_external.factor) return m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
+    m_failure.clear();
+    if(m_external.factor) {
+      const bool ok = m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
+      if(!ok) m_failure = "the user's sparse_linear_solver failed";
+      return ok;
+    }
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
+      last_cholmod_message().clear();
       m_chol.factorize(A);
-      return m_chol.info() == Eigen::Success;
+      if(m_chol.info() == Eigen::Success) return true;
+      m_failure = "CHOLMOD " + (last_cholmod_message().empty() ? std::string("reported a numerical issue")
+                                                                 : last_cholmod_message());
+      return false;
     }
 #endif
     m_ldlt.factorize(A);
-    return m_ldlt.info() == Eigen::Success && m_ldlt.vectorD().minCoeff() > 0;
+    if(m_ldlt.info() == Eigen::Success && m_ldlt.vectorD().minCoeff() > 0) return true;
+    m_failure = "Eigen's LDL^T found a pivot <= 0";
+    return false;
   }
+  /// Why the last factorize() failed (empty after a success).
+  const std::string& failure() const { return m_failure; }
   template <typename Rhs, typename Solution>
   bool solve(const Rhs& B, Solution& X)
   {
@@ -333,6 +373,7 @@ public:
 
 private:
   External m_external;
+  std::string m_failure;
   bool m_cholmod = false;
   Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> m_ldlt;
 #ifdef LAPMESH_HAS_CHOLMOD
@@ -361,6 +402,42 @@ struct Smoothing_settings
   std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
   Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
+
+/// The face with the smallest area / (longest edge)^2, and that ratio (0 for a segment).
+inline std::pair<Index, double> flattest_face(const Mesh_topology& t, const Positions& P)
+{
+  Index best = 0;
+  double best_ratio = std::numeric_limits<double>::infinity();
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const auto [a, b, c] = face_points(t, P, f);
+    const double longest = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    const double ratio = longest > 0 ? 0.5 * (b - a).cross(c - a).norm() / longest : 0.0;
+    if(ratio < best_ratio) {
+      best_ratio = ratio;
+      best = f;
+    }
+  }
+  return {best, best_ratio};
+}
+
+/// Rebuilds the operator from the positions after `iteration` steps. A face that the flow
+/// collapsed (or a vertex whose area vanished) is reported with the iteration that did it:
+/// the input itself was valid, so the bare "face F has zero area" would point at the file.
+template <typename Rebuild>
+void rebuild_operator_after(int iteration, Rebuild&& rebuild)
+{
+  try {
+    rebuild();
+  } catch(const Mesh_error& e) {
+    const std::string prefix = "iteration " + std::to_string(iteration) + ": ";
+    if(e.element() == Mesh_error::Element::face)
+      throw Mesh_error(prefix + "face " + std::to_string(e.index()) +
+                         " has zero area (the flow collapsed it; its cotangent weights are undefined: a smaller "
+                         "lambda, fewer iterations or a fixed operator avoid this)",
+                       e.element(), e.index());
+    throw Mesh_error(prefix + e.what(), e.element(), e.index());
+  }
+}
 
 inline void check_settings(const Smoothing_settings& s)
 {
@@ -450,8 +527,10 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     for(int it = 0; it < s.iterations; ++it) {
       if(it > 0 && rebuild_stiffness) {
         t0 = Clock::now();
-        assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
-        require_positive_mass(pencil.mass, s.area);
+        rebuild_operator_after(it, [&] {
+          assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
+          require_positive_mass(pencil.mass, s.area);
+        });
         report.assembly_seconds += seconds_since(t0);
       }
       t0 = Clock::now();
@@ -522,12 +601,14 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
   for(int it = 0; it < s.iterations; ++it) {
     if(it > 0 && (rebuild_stiffness || rebuild_mass)) {
       t0 = Clock::now();
-      if(rebuild_stiffness) {
-        assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
-      } else {
-        pencil.mass = vertex_areas(t, P, s.area, s.parallel);
-      }
-      require_positive_mass(pencil.mass, s.area);
+      rebuild_operator_after(it, [&] {
+        if(rebuild_stiffness) {
+          assemble_pencil(t, P, s.laplacian, s.area, s.parallel, pencil);
+        } else {
+          pencil.mass = vertex_areas(t, P, s.area, s.parallel);
+        }
+        require_positive_mass(pencil.mass, s.area);
+      });
       report.assembly_seconds += seconds_since(t0);
       factorized = false;
     }
@@ -591,9 +672,24 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
       fill_matrix();
       const bool ok = solver.factorize(A);
       ++report.factorizations;
-      if(!ok)
-        throw Numerical_error("the Cholesky factorisation of M - lambda S failed at iteration " +
-                              std::to_string(it + 1) + ": the matrix is not positive definite");
+      // M - lambda S is positive definite in exact arithmetic (M > 0, and -S is a sum of
+      // positive semidefinite element matrices, negative cotangent weights included), so a
+      // failure is numerical: nearly degenerate faces with huge cotangent weights. Name the
+      // flattest face, in the words of the zero-area error (positions after `it` steps).
+      if(!ok) {
+        const auto [face, flatness] = flattest_face(t, P);
+        if(!(flatness < 1e-6))  // no face to blame (a user's solver that failed, say)
+          throw Numerical_error("iteration " + std::to_string(it + 1) + ": the factorisation of M - lambda S failed (" +
+                                solver.failure() + ")");
+        char ratio[32];
+        std::snprintf(ratio, sizeof ratio, "%.2g", flatness);
+        throw Numerical_error(
+          "iteration " + std::to_string(it) + ": face " + std::to_string(face) + " is nearly collapsed (area " +
+          ratio + " x its longest edge squared; the flow collapsed it), and the Cholesky factorisation of M - "
+          "lambda S for the next step failed (" + solver.failure() + "): the matrix is positive definite in exact "
+          "arithmetic, such faces make it numerically indefinite; a smaller lambda, fewer iterations or a fixed "
+          "operator avoid this");
+      }
       factorized = true;
       report.factorization_seconds += seconds_since(t0);
     }
