@@ -269,6 +269,10 @@ TEST_F(ViewerApi, CurvatureValuesRangesAndColoursAreTheLibrarys)
   }
   // Bad colouring requests.
   expect_refused(get("/api/meshes/cow/scalars?quantity=curl"), 400, "quantity");
+  // Choice errors list exactly the named choices: no empty entry, colour maps from the library's table.
+  expect_refused(get("/api/meshes/cow/scalars?quantity=curl"), 400, "one of mean, gaussian, k1, k2, displacement (got 'curl')");
+  expect_refused(get("/api/meshes/cow/scalars?quantity=mean&colormap=rainbow"), 400,
+                 "one of " + lapmesh::colormap_name_list() + " (got 'rainbow')");
   expect_refused(get("/api/meshes/cow/scalars?colormap=rainbow"), 400, "colormap");
   expect_refused(get("/api/meshes/cow/scalars?range=manual&min=2&max=1"), 400, "min");
   expect_refused(get("/api/meshes/cow/scalars?range=manual&min=abc&max=1"), 400, "min");
@@ -325,6 +329,14 @@ TEST_F(ViewerApi, SmoothingMovesVerticesAsTheLibraryAndResetRestores)
   const json w = post("/api/meshes/cow/smooth", {{"scheme", "explicit"}, {"lambda", 5.0}, {"iterations", 1}, {"laplacian", "uniform"}});
   EXPECT_TRUE(w.contains("warning"));
   post("/api/meshes/cow/smooth", {{"scheme", "conformal"}, {"lambda", 0.5}, {"lambda_unit", "edge2"}, {"iterations", 1}, {"area", "mixed"}});
+
+  // The bound served for a small lambda is explicit_stability_bound() of the mesh, as the CLI
+  // prints it, not the smoother's cheaper Gershgorin lower bound.
+  post("/api/meshes/cow/reset", json::object());
+  const json small = post("/api/meshes/cow/smooth", {{"scheme", "explicit"}, {"lambda", 1e-9}, {"iterations", 1}});
+  const double bound = lapmesh::explicit_stability_bound(load(cow_path), LP::laplacian(lapmesh::Laplacian::cotangent));
+  EXPECT_NEAR(small["stability_bound"].get<double>(), bound, 1e-9 * bound);
+  EXPECT_FALSE(small.contains("warning"));
 
   // Area restoration: the smoothed cow keeps the surface area of the input.
   post("/api/meshes/cow/reset", json::object());

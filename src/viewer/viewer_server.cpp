@@ -35,6 +35,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <list>
 #include <map>
 #include <mutex>
@@ -102,14 +103,19 @@ public:
 
   std::string choice(const std::string& key, const std::string& fallback, std::initializer_list<const char*> allowed)
   {
+    return choice(key, fallback, std::vector<std::string>(allowed.begin(), allowed.end()));
+  }
+  /// `fallback` when the key is absent; otherwise one of `allowed`, which the error lists.
+  std::string choice(const std::string& key, const std::string& fallback, const std::vector<std::string>& allowed)
+  {
     const json* v = take(key);
     if(!v) return fallback;
     if(!v->is_string()) throw Http_error(400, "'" + key + "' must be a string");
     const std::string s = v->get<std::string>();
     std::string list;
-    for(const char* a : allowed) {
+    for(const std::string& a : allowed) {
       if(s == a) return s;
-      list += std::string(list.empty() ? "" : ", ") + a;
+      list += (list.empty() ? "" : ", ") + a;
     }
     throw Http_error(400, "'" + key + "' must be one of " + list + " (got '" + s.substr(0, 40) + "')");
   }
@@ -918,8 +924,20 @@ struct Server::Impl
     const auto base = LP::fix_boundary(
       fix_boundary, LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap))));
     s.set_stage("time step");
-    const double lambda = lambda_auto ? lapmesh::automatic_time_step(s.current, sch, base)
-                                      : lapmesh::time_step(s.current, lambda_value, *lapmesh::parse_time_step_unit(unit), base);
+    // One bound for the explicit scheme, as the CLI computes it: explicit_stability_bound() on the
+    // input's free vertices (the smoother's report may hold a cheaper Gershgorin lower bound).
+    const bool explicit_scheme = sch == lapmesh::Smoothing_scheme::explicit_euler;
+    const double bound = explicit_scheme ? lapmesh::explicit_stability_bound(s.current, base)
+                                         : std::numeric_limits<double>::quiet_NaN();
+    const auto step_unit = *lapmesh::parse_time_step_unit(unit);
+    double lambda = 0;
+    if(lambda_auto)
+      lambda = explicit_scheme ? lapmesh::automatic_explicit_time_step(bound)
+                               : lapmesh::automatic_time_step(s.current, sch, base);
+    else
+      lambda = explicit_scheme && step_unit == lapmesh::Time_step_unit::stability_bound
+                 ? lambda_value * bound
+                 : lapmesh::time_step(s.current, lambda_value, step_unit, base);
     s.total = iterations;
     s.set_stage("smoothing");
     Mesh work = s.current;  // a cancelled or failed run leaves the mesh as it was
@@ -942,10 +960,10 @@ struct Server::Impl
                 {"free_vertices", report.free_vertices}, {"laplacian", lap}, {"area", area},
                 {"fixed_operator", fixed_operator}, {"restore_volume", restore_volume}, {"restore_area", restore_area},
                 {"fix_boundary", fix_boundary}};
-    if(sch == lapmesh::Smoothing_scheme::explicit_euler) out["stability_bound"] = report.stability_bound;
-    if(report.above_stability_bound)
+    if(explicit_scheme) out["stability_bound"] = bound;
+    if(explicit_scheme && lambda > bound)
       out["warning"] = "lambda " + Params::fmt(lambda) + " exceeds the explicit stability bound " +
-                       Params::fmt(report.stability_bound) + " (use lambda \"auto\" or lambda_unit \"bound\")";
+                       Params::fmt(bound) + " (use lambda \"auto\" or lambda_unit \"bound\")";
     geometry_changed(s, "smooth");
     return out;
   }
@@ -995,8 +1013,11 @@ struct Server::Impl
   {
     Coloring c;
     const std::string fallback = s.scalars.count("mean") ? "mean" : s.scalars.empty() ? "" : s.scalars.begin()->first;
-    c.quantity = p.choice("quantity", fallback, {"mean", "gaussian", "k1", "k2", "displacement", ""});
-    c.colormap = p.choice("colormap", "jet", {"jet", "viridis", "coolwarm", "diverging", "gray"});
+    // The fallback may be empty (no values yet); a given quantity must be a named one.
+    c.quantity = p.choice("quantity", fallback, quantity_names);
+    std::vector<std::string> colormaps;
+    for(const auto& n : lapmesh::colormap_names()) colormaps.push_back(n.name);
+    c.colormap = p.choice("colormap", "jet", colormaps);
     c.mode = p.choice("range", "auto", {"auto", "percentile", "symmetric", "manual"});
     c.clip = p.number("clip", c.mode == "percentile" ? 1.0 : 0.0, 0.0, 49.9);
     const bool manual = c.mode == "manual";
@@ -1444,10 +1465,10 @@ struct Server::Impl
     http.Get("/api/colormaps", [](const httplib::Request&, httplib::Response& res) {
       guarded(res, [&] {
         json maps = json::object();
-        for(const char* name : {"jet", "viridis", "coolwarm", "gray"}) {
+        for(const auto& [name, map] : lapmesh::colormap_names()) {
           json samples = json::array();
           for(int i = 0; i < 256; ++i) {
-            const lapmesh::Rgb c = lapmesh::map_color(*lapmesh::parse_colormap(name), i / 255.0);
+            const lapmesh::Rgb c = lapmesh::map_color(map, i / 255.0);
             samples.push_back(c.r);
             samples.push_back(c.g);
             samples.push_back(c.b);

@@ -258,7 +258,7 @@ function drawColorbar() {
   const box = $('colorbar-box');
   const s = state.scalars;
   if (!s || !state.colormaps) { box.hidden = true; return; }
-  const table = state.colormaps[s.header.colormap === 'diverging' ? 'coolwarm' : s.header.colormap];
+  const table = state.colormaps[s.header.colormap];
   const ctx = $('colorbar').getContext('2d');
   const img = ctx.createImageData(256, 14);
   for (let x = 0; x < 256; x++) for (let y = 0; y < 14; y++) {
