@@ -66,6 +66,11 @@ void add_area_option(CLI::App& cmd, std::string& value);
 lapmesh::Laplacian laplacian_from(const std::string& value);
 lapmesh::Vertex_area area_from(const std::string& value);
 
+/// An integer option read from its text (no wrap-around past 2^64), checked against [lo, hi]:
+/// the error quotes the text as given (bounded) and names the range.
+long long parse_count_option(const std::string& input, const std::string& option, const std::string& text,
+                             long long lo, long long hi, const std::string& range_note);
+
 /// Spectral helpers shared by `spectrum` and `reconstruct` (cmd_spectrum.cpp): -k parsed and
 /// checked against n, and the basis computed with progress on a terminal and file-named errors.
 long long spectral_k_from(const std::string& input, const std::string& text, long long n);

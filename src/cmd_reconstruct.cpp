@@ -10,11 +10,6 @@
 
 namespace lapmesh_cli {
 
-// Defined in cmd_spectrum.cpp beside spectral_k_from: an integer option read from its text,
-// checked against [lo, hi]; the message quotes the text as given and names the range.
-long long parse_count_option(const std::string& input, const std::string& option, const std::string& text,
-                             long long lo, long long hi, const std::string& range_note);
-
 namespace {
 
 struct Reconstruct_options

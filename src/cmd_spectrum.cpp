@@ -88,34 +88,6 @@ lapmesh::Spectral_basis compute_spectral_basis(const std::string& input, const M
   }
 }
 
-namespace {
-// The option's text as given, bounded (it goes into a one-line message).
-std::string quoted_excerpt(const std::string& text)
-{
-  return "'" + (text.size() <= 40 ? text : text.substr(0, 40) + "...") + "'";
-}
-} // namespace
-
-long long parse_count_option(const std::string& input, const std::string& option, const std::string& text,
-                             long long lo, long long hi, const std::string& range_note)
-{
-  const std::string expected = "expected " + std::to_string(lo) + " <= " + option.substr(option.find_first_not_of('-')) +
-                               " <= " + std::to_string(hi) + range_note;
-  // Digits only, read without a width limit: a number past 2^64 is out of range, never wrapped.
-  const bool negative = !text.empty() && text[0] == '-';
-  const std::string digits = negative ? text.substr(1) : text;
-  if(digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos)
-    throw Failure(input + ": " + option + " " + quoted_excerpt(text) + " is not an integer (" + expected + ")");
-  const std::size_t first = std::min(digits.find_first_not_of('0'), digits.size());
-  const std::string significant = digits.substr(first);
-  const bool fits = significant.size() < 19;  // below 10^18 < 2^63
-  const long long magnitude = fits ? (significant.empty() ? 0 : std::stoll(significant)) : 0;
-  const long long value = negative ? -magnitude : magnitude;
-  if(!fits || value < lo || value > hi)
-    throw Failure(input + ": " + option + " " + quoted_excerpt(text) + " is out of range (" + expected + ")");
-  return value;
-}
-
 long long spectral_k_from(const std::string& input, const std::string& text, long long n)
 {
   return parse_count_option(input, "-k", text, 1, n, ", the number of vertices");
