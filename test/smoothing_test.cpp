@@ -221,6 +221,28 @@ TEST(Smoothing, CholmodAndEigenSolversAgree)
   EXPECT_GT((positions(a) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);
 }
 
+TEST(Smoothing, ImplicitSmoothingIsScaleCovariantAtTheEndsOfTheRange)
+{
+  // Mean curvature flow commutes with scaling (lambda scales with the area): a mesh scaled by
+  // s and smoothed equals the smoothed mesh scaled by s. At s = 1e+-140 the right-hand side
+  // M P of the unscaled system is not representable (1e+-420).
+  const lapmesh::Triangle_soup unit = lapmesh::bumpy_sphere(2);
+  Mesh reference = to_mesh(unit);
+  const double lambda = lapmesh::scale_free_time_step(reference, 1.0);
+  lapmesh::smooth_laplacian_implicit(reference, lambda, CGAL::parameters::number_of_iterations(3));
+  const auto expected = positions(reference);
+  for(double scale : {1e-140, 1e-20, 1e20, 1e140}) {
+    lapmesh::Triangle_soup scaled = unit;
+    for(auto& p : scaled.points)
+      for(double& c : p) c *= scale;
+    Mesh m = to_mesh(scaled);
+    lapmesh::smooth_laplacian_implicit(m, lambda * scale * scale, CGAL::parameters::number_of_iterations(3));
+    const auto P = positions(m);
+    ASSERT_TRUE(P.allFinite()) << scale;
+    EXPECT_LE((P / scale - expected).cwiseAbs().maxCoeff(), 1e-12) << scale;
+  }
+}
+
 TEST(Smoothing, ReusedFactorizationMatchesRefactorization)
 {
   const Mesh input = to_mesh(lapmesh::bumpy_sphere(4));

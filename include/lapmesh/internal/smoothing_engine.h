@@ -586,6 +586,15 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     std::copy(a_outer.begin(), a_outer.end(), A.outerIndexPtr());
     std::copy(a_inner.begin(), a_inner.end(), A.innerIndexPtr());
   }
+  // The system (M - lambda S) X = M P is divided by a power of four near the mean mass: on
+  // meshes of extreme scale M P would overflow (or underflow) although the solution is
+  // representable. Dividing by an even power of two is exact, down to the square roots of the
+  // Cholesky factor, so the solution is bitwise that of the unscaled system.
+  int mass_exponent = 0;
+  std::frexp(pencil.mass.mean(), &mass_exponent);
+  const double system_scale = std::ldexp(1.0, -2 * (mass_exponent / 2));
+  const double scaled_lambda = s.lambda * system_scale;
+
   const int planned_factorizations = (rebuild_stiffness || rebuild_mass) ? s.iterations : 1;
   Spd_direct_solver solver(s.use_cholmod, s.external_solver);
   solver.analyze(A, planned_factorizations);
@@ -616,16 +625,16 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
     auto fill_matrix = [&] {
       double* a = A.valuePtr();
       const Index na = A.nonZeros();
-      for(Index k = 0; k < na; ++k) a[k] = -s.lambda * values[a_source[k]];
+      for(Index k = 0; k < na; ++k) a[k] = -scaled_lambda * values[a_source[k]];
       for(Index i = 0; i < n; ++i)
-        if(free_mask[i]) a[a_diagonal[fid[i]]] += pencil.mass[i];
+        if(free_mask[i]) a[a_diagonal[fid[i]]] += pencil.mass[i] * system_scale;
     };
-    auto fill_rhs = [&] {  // M_FF P_F + lambda S_FB P_B
+    auto fill_rhs = [&] {  // M_FF P_F + lambda S_FB P_B, scaled as the matrix
       for_each_index(n, s.parallel, [&](Index i) {
         if(!free_mask[i]) return;
-        Eigen::Vector3d b = pencil.mass[i] * P.row(i).transpose();
+        Eigen::Vector3d b = (pencil.mass[i] * system_scale) * P.row(i).transpose();
         for(Index k = outer[i]; k < outer[i + 1]; ++k)
-          if(!free_mask[inner[k]]) b += s.lambda * values[k] * P.row(inner[k]).transpose();
+          if(!free_mask[inner[k]]) b += scaled_lambda * values[k] * P.row(inner[k]).transpose();
         B.row(fid[i]) = b.transpose();
       });
     };
