@@ -1,4 +1,4 @@
-// End-to-end tests of `lapmesh curvature`: outputs against the library, the SPEC's formats,
+// End-to-end tests of `lapmesh curvature`: outputs against the library, the formats of doc/cli.md,
 // and every bad input (one stderr line naming the file, non-zero exit, no output file).
 #include "test_helpers.h"
 

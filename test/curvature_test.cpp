@@ -96,7 +96,7 @@ TEST(Curvature, SphereConvergenceOrderMixedVersusBarycentric)
   // mixed: measured order ~2.4 per halving of the edge length
   EXPECT_GT(std::log2(mixed_h[0] / mixed_h[1]), 2.0);
   EXPECT_GT(std::log2(mixed_h[1] / mixed_h[2]), 2.0);
-  // barycentric: ~14.6% error at the valence-5 vertices at every level (SPEC), no convergence
+  // barycentric: ~14.6% error at the valence-5 vertices at every level, no convergence
   for(double e : bary_max) EXPECT_NEAR(e, 0.146, 0.01);
 }
 

@@ -35,7 +35,7 @@ Eigen::MatrixXd reference_cotangent_matrix(const Mesh& m)
   return C;
 }
 
-// Reference Voronoi areas from the SPEC's edge formula: 1/8 sum (cot a + cot b) |xi - xj|^2.
+// Reference Voronoi areas from the edge formula of doc/conventions.md: 1/8 sum (cot a + cot b) |xi - xj|^2.
 Eigen::VectorXd reference_voronoi_areas(const Mesh& m, const Eigen::MatrixXd& C)
 {
   Eigen::VectorXd A = Eigen::VectorXd::Zero(num_vertices(m));

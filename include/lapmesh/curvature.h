@@ -1,4 +1,4 @@
-// lapmesh — discrete curvatures of a triangle mesh (SPEC §1).
+// lapmesh — discrete curvatures of a triangle mesh (doc/conventions.md).
 //
 // Every output is pointwise (a density, not integrated over the vertex area) and per vertex:
 //  - mean curvature H_i = 1/2 |(L x)_i| s_i, signed with the area-weighted vertex normal so
@@ -38,7 +38,7 @@ struct Vertex_curvatures
 
 namespace internal {
 
-/// The factor s_i of the SPEC: -1 when L x points along the normal beyond round-off.
+/// The sign factor s_i of doc/conventions.md: -1 when L x points along the normal beyond round-off.
 inline double mean_curvature_sign(const Eigen::Vector3d& Lx, const Eigen::Vector3d& n)
 {
   return Lx.dot(n) > 1e-10 * Lx.norm() ? -1.0 : 1.0;

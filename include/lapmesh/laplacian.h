@@ -1,6 +1,6 @@
 // lapmesh — Laplacian operators of a triangle mesh: stiffness matrices and lumped masses.
 //
-// Conventions (SPEC §1; doc/conventions.md compares them with libigl, pmp and CGAL):
+// Conventions (doc/conventions.md, which also compares them with libigl, pmp and CGAL):
 //  - Stiffness matrices are negative semidefinite, with zero row sums (S·1 = 0):
 //      cotangent  C_ij = 1/2 (cot alpha_ij + cot beta_ij),  C_ii = -sum_j C_ij
 //      uniform    W = A - D  (adjacency minus degrees)
@@ -26,7 +26,7 @@ namespace lapmesh {
 /// n x 3 per-vertex vectors (positions, normals, Laplacians), row i = vertex i.
 using Vertex_vectors = internal::Positions;
 
-/// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (SPEC §1).
+/// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (doc/conventions.md).
 struct Laplacian_pencil
 {
   Eigen::SparseMatrix<double> stiffness;  ///< S: C (cotangent) or W (uniform); negative semidefinite
@@ -117,7 +117,7 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   return out;
 }
 
-/// @brief returns the cotangent stiffness matrix C (SPEC §1), negative semidefinite.
+/// @brief returns the cotangent stiffness matrix C (doc/conventions.md), negative semidefinite.
 /// Named parameters: `vertex_point_map`, `vertex_index_map` (as in laplacian_pencil()).
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>

@@ -1,5 +1,5 @@
 // lapmesh — Laplacian smoothing: explicit and implicit Laplacian flow, and conformalized
-// mean curvature flow (SPEC §1 "Smoothing").
+// mean curvature flow.
 //
 //   explicit   P <- P + lambda L P                  (L = M^-1 S; stable for lambda < 2 / mu_max)
 //   implicit   (M - lambda S) P' = M P              (backward Euler, SPD, unconditionally stable)

@@ -1,4 +1,4 @@
-// lapmesh — reproducible Gaussian vertex noise (SPEC §1 "Noise").
+// lapmesh — reproducible Gaussian vertex noise.
 //
 // Each vertex moves by sigma * g, g a standard normal 3-vector (isotropic), or by
 // sigma * g * n_i, g a standard normal scalar and n_i the area-weighted unit vertex normal

@@ -23,13 +23,13 @@
 
 namespace lapmesh {
 
-/// The discretisation of the Laplacian (SPEC §1).
+/// The discretisation of the Laplacian (doc/conventions.md).
 enum class Laplacian {
   uniform,   ///< graph Laplacian: stiffness W = A - D, mass D = diag(degree)
   cotangent  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
 };
 
-/// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (SPEC §1).
+/// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (doc/conventions.md).
 enum class Vertex_area {
   barycentric,  ///< one third of the incident face areas (default)
   voronoi,      ///< circumcentric cells; can be zero or negative on obtuse meshes

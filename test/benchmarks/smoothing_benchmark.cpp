@@ -1,5 +1,5 @@
 // Smoothing benchmarks: 10 implicit iterations with re-assembly (100k, 250k, 1M vertices)
-// and 10 explicit iterations (operator built once, as in ANCHORS.md, and rebuilt) on 1M,
+// and 10 explicit iterations (operator built once, as the public libraries do, and rebuilt) on 1M,
 // single- and multi-threaded. Meshes: generated tori (closed, genus 1) and Loop-subdivided scans
 // from CGAL's data set, scaled to unit area (test_arrays).
 // Counters split the time into assembly, symbolic analysis, numeric factorisation and solves.
@@ -33,8 +33,8 @@ struct Arrays
 
 // Test meshes, scaled to unit area. id >= 100: an nu x nv torus of id thousand vertices with
 // ~square cells (nu / nv = R / r = 2.5): a regular grid, the hard case for AMD ordering.
-// id 1-3: scans from CGAL's data set, Loop-subdivided, closer to the subdivided armadillo of
-// ANCHORS.md: 1 armadillo + 1 Loop step (104k vertices), 2 refined_elephant + 1 step (178k),
+// id 1-3: scans from CGAL's data set, Loop-subdivided, closer to the subdivided armadillo
+// that the public libraries are usually timed on: 1 armadillo + 1 Loop step (104k vertices), 2 refined_elephant + 1 step (178k),
 // 3 armadillo + 2 steps (416k). (man + 2 steps, 280k, is not used: its thin fingers collapse
 // into zero-area faces within 10 steps of one mean edge length squared.)
 const Arrays& test_arrays(int id)
@@ -114,7 +114,7 @@ void BM_ImplicitReuse(benchmark::State& state) { run(state, lapmesh::Smoothing_s
 void BM_ExplicitFixedOperator(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, true); }
 void BM_ExplicitRebuilt(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, false); }
 
-// The public libraries' implicit step (ANCHORS.md: libigl, pmp-library and CGAL's smooth_shape
+// The public libraries' implicit step (libigl, pmp-library and CGAL's smooth_shape
 // with an LDL^T solver alike), as a same-run baseline: assemble, then a complete Eigen
 // SimplicialLDLT (ordering included) of M - lambda S every iteration, and one 3-column solve.
 // It is given lapmesh's assembly (faster than their triplet builds), so the ratio is conservative.

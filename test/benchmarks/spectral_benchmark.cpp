@@ -1,6 +1,6 @@
 // Spectral basis timings (doc/spectral.md): lapmesh's solver (shift-invert Lanczos on the
-// standardised pencil, SimplicialLLT or CHOLMOD) against the plain public set-up that
-// ANCHORS.md measured (Spectra's SymGEigsShiftSolver, ShiftInvert mode, on Eigen's
+// standardised pencil, SimplicialLLT or CHOLMOD) against the plain public set-up
+// (Spectra's SymGEigsShiftSolver, ShiftInvert mode, on Eigen's
 // SimplicialLDLT), on the same pencils, in one run so that ratios are comparable.
 // Meshes: CGAL's data set, Loop-subdivided to reach the sizes (closed or with boundary).
 //   ./spectral_benchmark --benchmark_filter=...   (peak memory: /usr/bin/time -v, one filter at a time)
@@ -41,7 +41,7 @@ const lapmesh::Laplacian_pencil& pencil(int id)
   lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), m);
   if(cases[id].loop_steps > 0)
     CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
-  // Scale to unit area, as in ANCHORS.md.
+  // Scale to unit area, as the public comparisons do.
   auto p = lapmesh::laplacian_pencil(m);
   const double area = p.mass.sum();
   p.stiffness *= 1.0;  // C is scale-invariant

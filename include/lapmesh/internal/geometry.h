@@ -3,7 +3,7 @@
 // One streaming pass over the faces computes, for every corner, the cotangent of its angle
 // and its share of the vertex area (and, on request, the angle itself and the face normal).
 // This is the single canonical place where cotangent weights and vertex areas are defined
-// (SPEC §1); every operator and curvature of lapmesh is a gather over these arrays.
+// (doc/conventions.md); every operator and curvature of lapmesh is a gather over these arrays.
 #ifndef LAPMESH_INTERNAL_GEOMETRY_H
 #define LAPMESH_INTERNAL_GEOMETRY_H
 
@@ -196,7 +196,7 @@ inline Positions uniform_laplacian_sums(const Mesh_topology& t, const Positions&
   return out;
 }
 
-/// Writes the cotangent stiffness C (SPEC: C_ij = 1/2 (cot alpha + cot beta), C_ii = -sum)
+/// Writes the cotangent stiffness C (C_ij = 1/2 (cot alpha + cot beta), C_ii = -sum)
 /// into the values of the pattern of `t`, one row at a time (rows are independent).
 inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geometry& g, double* values,
                                      bool parallel)
