@@ -6,7 +6,6 @@
 
 #include <CGAL/Polygon_mesh_processing/measure.h>
 
-#include <chrono>
 #include <ctime>
 #include <cstdlib>
 #include <fstream>
@@ -467,16 +466,17 @@ TEST(IoHostile, BinaryPlyOfBothByteOrdersAndBinaryStlGiveTheSameSoupAsAscii)
 
 TEST(IoHostile, OffCountsAndValencesAreCheckedAgainstTheFileSize)
 {
-  using clock = std::chrono::steady_clock;
   const std::string claim = "OFF\n100000000 1 0\n";
   ASSERT_EQ(claim.size(), 18u);
   Mesh m;
   const double before = peak_rss_mib();
-  const auto start = clock::now();
+  // CPU time, with a wide margin (the old reader spent about a minute growing its arrays): a
+  // loaded machine or a sanitizer build must not make this fail.
+  const std::clock_t start = std::clock();
   const std::string e = read_error("claims.off", claim);
-  const double seconds = std::chrono::duration<double>(clock::now() - start).count();
+  const double seconds = double(std::clock() - start) / CLOCKS_PER_SEC;
   EXPECT_TRUE(contains(e, "declares 100000000 vertices, more than its remaining")) << e;
-  EXPECT_LT(seconds, 0.5);
+  EXPECT_LT(seconds, 2.0);
   EXPECT_LT(peak_rss_mib() - before, 50.0);
   EXPECT_TRUE(contains(read_error("claims2.off", "OFF 2000000000 1 0\n"), "declares 2000000000 vertices"));
   EXPECT_TRUE(contains(read_error("valence.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2000000000 0 1 2\n"),
@@ -710,7 +710,7 @@ TEST(IoHostile, EarClippingIsFastOnLargePolygons)
       area += signed_area;
     }
     EXPECT_NEAR(area, shoelace(pts), 1e-9 * std::abs(shoelace(pts))) << name;  // a tiling, no overlap
-    EXPECT_LT(seconds, 1.0) << name << " (the quadratic clipping took 8.5 s)";
+    EXPECT_LT(seconds, 2.0) << name << " (the quadratic clipping took 8.5 s)";
     std::cout << name << ": " << pts.size() << " vertices in " << seconds << " s of CPU time\n";
   }
   // A convex polygon is the fan of its last vertex, as before the rewrite.
