@@ -25,18 +25,15 @@ void run(const Noise_options& o)
     throw Failure(o.input + ": --level must be a finite number >= 0 (got " + std::to_string(o.level) + ")");
   check_output_path(o.output, {"off", "obj", "ply", "stl"});
   Mesh mesh = load_mesh(o.input);
-  // The mesh was loaded in input vertex order: extract it once and noise the arrays directly
-  // (the internal entry point takes the full 64-bit seed; CGAL's random_seed is 32-bit).
-  auto extracted = or_fail(o.input, [&] { return lapmesh::internal::extract_mesh(mesh, CGAL::parameters::default_values()); });
+  namespace LP = lapmesh::parameters;
+  const auto direction = o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic;
+  const auto scale = o.scale == "bbox" ? lapmesh::Noise_scale::bounding_box_diagonal : lapmesh::Noise_scale::mean_edge_length;
   const double sigma = or_fail(o.input, [&] {
-    return lapmesh::internal::add_noise(
-      extracted.topology, extracted.positions, o.level,
-      o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic,
-      o.scale == "bbox" ? lapmesh::Noise_scale::bounding_box_diagonal : lapmesh::Noise_scale::mean_edge_length,
-      o.seed);
+    return lapmesh::add_noise(mesh, o.level, LP::noise_seed(o.seed, LP::noise_direction(direction, LP::noise_scale(scale))));
   });
   or_fail(o.output, [&] {
-    lapmesh::io::write_mesh(o.output, extracted.positions, lapmesh::io::triangle_list(extracted.topology));
+    const auto [positions, triangles] = lapmesh::io::mesh_arrays(mesh);
+    lapmesh::io::write_mesh(o.output, positions, triangles);
   });
   if(!o.quiet)
     std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << o.direction << " noise, sigma " << sigma

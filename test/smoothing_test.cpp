@@ -552,6 +552,13 @@ TEST(Noise, SameSeedSameNoiseDifferentSeedDifferentNoise)
     EXPECT_EQ((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 0.0);
     EXPECT_GT((positions(a) - positions(c)).cwiseAbs().maxCoeff(), 1e-3);
   }
+  // noise_seed takes all 64 bits and precedence over random_seed, which it equals below 2^32.
+  Mesh a = input, b = input, c = input;
+  lapmesh::add_noise(a, 0.1, LP::noise_seed(std::uint64_t(7)));
+  lapmesh::add_noise(b, 0.1, LP::noise_seed(std::uint64_t(7) + (std::uint64_t(1) << 40)).random_seed(7));
+  lapmesh::add_noise(c, 0.1, CGAL::parameters::random_seed(7));
+  EXPECT_EQ((positions(a) - positions(c)).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-3);
   // std::mt19937_64 is fixed by the standard: its 10000th output from the default seed.
   std::mt19937_64 rng;
   rng.discard(9999);

@@ -32,6 +32,9 @@ enum class Noise_scale { mean_edge_length, bounding_box_diagonal };
 LAPMESH_NAMED_PARAMETER(noise_direction)
 /// Noise_scale; default mean_edge_length.
 LAPMESH_NAMED_PARAMETER(noise_scale)
+/// std::uint64_t, the seed of the draws with all its 64 bits (CGAL's `random_seed` is an
+/// unsigned int); when given, it takes precedence over `random_seed`.
+LAPMESH_NAMED_PARAMETER(noise_seed)
 
 /// Standard normal samples from std::mt19937_64, identical on every platform (Marsaglia polar).
 class Normal_sampler
@@ -110,6 +113,7 @@ inline double add_noise(const Mesh_topology& t, Positions& P, double level, Nois
 /// @param level sigma = level * mean edge length (or * bounding-box diagonal)
 /// @param np named parameters:
 ///   - `CGAL::parameters::random_seed` (unsigned; default 0)
+///   - `lapmesh::parameters::noise_seed` (std::uint64_t; takes precedence over `random_seed`)
 ///   - `lapmesh::parameters::noise_direction` (default isotropic)
 ///   - `lapmesh::parameters::noise_scale` (default mean_edge_length)
 ///   - `CGAL::parameters::vertex_point_map`, `vertex_index_map` (the order of the draws)
@@ -120,7 +124,9 @@ double add_noise(TriangleMesh& tm, double level, const NamedParameters& np = CGA
   using CGAL::parameters::choose_parameter;
   using CGAL::parameters::get_parameter;
   auto mesh = internal::extract_mesh(tm, np);
-  const std::uint64_t seed = std::uint64_t(choose_parameter(get_parameter(np, CGAL::internal_np::random_seed), 0u));
+  const std::uint64_t seed = std::uint64_t(choose_parameter(
+    get_parameter(np, internal_np::noise_seed),
+    std::uint64_t(choose_parameter(get_parameter(np, CGAL::internal_np::random_seed), 0u))));
   const double sigma = internal::add_noise(
     mesh.topology, mesh.positions, level,
     choose_parameter(get_parameter(np, internal_np::noise_direction), Noise_direction::isotropic),
