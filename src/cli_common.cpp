@@ -1,35 +1,56 @@
 #include "cli_common.h"
 
-#include <lapmesh/io.h>
-
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 
+#include <unistd.h>
+
 namespace lapmesh_cli {
+
+std::string spelling(const std::string& parameter, const std::string& value)
+{
+  if(parameter == "fix_boundary") return "--free-boundary";  // the CLI's flag says the opposite
+  if(parameter == "basis") return "--load-basis";
+  std::string flag = parameter == "k" ? "-k" : "--" + parameter;
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return value.empty() || value == "true" ? flag : flag + " " + value;
+}
+
+std::string suggestion_text(const std::vector<lapmesh_ops::Suggestion>& suggestions)
+{
+  std::string text;
+  for(std::size_t i = 0; i < suggestions.size(); ++i)
+    text += (i == 0 ? "use " : " or ") + spelling(suggestions[i].parameter, suggestions[i].value);
+  return text;
+}
+
+void print_warnings(const std::string& input, const std::vector<lapmesh_ops::Warning>& warnings)
+{
+  for(const auto& w : warnings) {
+    std::cerr << input << ": warning: " << w.message;
+    if(!w.suggestions.empty()) std::cerr << " (" << suggestion_text(w.suggestions) << ")";
+    std::cerr << '\n';
+  }
+}
 
 Mesh load_mesh(const std::string& path)
 {
-  Mesh mesh;
-  try {
-    const lapmesh::io::Soup_report report = lapmesh::io::read_triangle_mesh(path, mesh);
-    if(report.triangulated_polygons > 0)
-      std::cerr << path << ": note: triangulated " << report.triangulated_polygons << " polygon(s)\n";
-    if(report.flipped_faces > 0)
-      std::cerr << path << ": note: re-oriented " << report.flipped_faces << " face(s) consistently\n";
-  } catch(const std::exception& e) {
-    throw Failure(path + ": " + e.what());
-  }
-  return mesh;
+  lapmesh_ops::Loaded_mesh loaded = or_fail(path, [&] { return lapmesh_ops::load_mesh(path); });
+  for(const std::string& note : loaded.notes) std::cerr << path << ": note: " << note << '\n';
+  return std::move(loaded.mesh);
 }
 
-void check_output_path(const std::string& out, std::initializer_list<const char*> allowed)
+void check_output_path(const std::string& out, const std::vector<std::string>& allowed)
 {
-  const std::string ext = lapmesh::io::extension_of(out);
+  const std::string ext = lapmesh_ops::extension_of(out);
   std::string list;
-  for(const char* a : allowed) {
+  for(const std::string& a : allowed) {
     if(ext == a) return;
-    list += std::string(list.empty() ? "." : ", .") + a;
+    list += (list.empty() ? "." : ", .") + a;
   }
   throw Failure(out + ": unsupported output format '." + ext + "' (expected " + list + ")");
 }
@@ -63,20 +84,15 @@ void add_input_output(CLI::App& cmd, std::string& input, std::string& output, co
 
 void add_laplacian_option(CLI::App& cmd, std::string& value)
 {
-  cmd.add_option("--laplacian", value, "Laplacian: cotangent (Laplace-Beltrami) or uniform (graph)")
-    ->check(CLI::IsMember({"uniform", "cotangent"}))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Laplacian>(cmd, "--laplacian", value,
+                                      "Laplacian: " + lapmesh::name_list<lapmesh::Laplacian>());
 }
 
 void add_area_option(CLI::App& cmd, std::string& value)
 {
-  cmd.add_option("--area", value, "vertex area (mass): barycentric, voronoi or mixed")
-    ->check(CLI::IsMember({"barycentric", "voronoi", "mixed"}))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Vertex_area>(cmd, "--area", value,
+                                        "vertex area (mass): " + lapmesh::name_list<lapmesh::Vertex_area>());
 }
-
-lapmesh::Laplacian laplacian_from(const std::string& value) { return *lapmesh::parse_laplacian(value); }
-lapmesh::Vertex_area area_from(const std::string& value) { return *lapmesh::parse_vertex_area(value); }
 
 namespace {
 // The option's text as given, bounded (it goes into a one-line message).
@@ -104,6 +120,32 @@ long long parse_count_option(const std::string& input, const std::string& option
   if(!fits || value < lo || value > hi)
     throw Failure(input + ": " + option + " " + quoted_excerpt(text) + " is out of range (" + expected + ")");
   return value;
+}
+
+long long spectral_k_from(const std::string& input, const std::string& text, long long n)
+{
+  return parse_count_option(input, "-k", text, 1, n, ", the number of vertices");
+}
+
+std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
+{
+  if(!::isatty(2)) return {};
+  // The block solver reports after every block step (hundreds per second on small meshes):
+  // redraw on a new stage or attempt, otherwise at most ten times a second.
+  return [last_stage = std::string(), last_attempt = 0, last_time = -1.0](const lapmesh::Spectral_progress& p) mutable {
+    if(p.stage == last_stage && p.attempt == last_attempt && p.elapsed_seconds < last_time + 0.1) return;
+    last_stage = p.stage;
+    last_attempt = p.attempt;
+    last_time = p.elapsed_seconds;
+    std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
+                 p.elapsed_seconds);
+    std::fflush(stderr);
+  };
+}
+
+void clear_progress_line()
+{
+  if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
 }
 
 } // namespace lapmesh_cli

@@ -2,9 +2,8 @@
 #include "cli_common.h"
 
 #include <lapmesh/colormap.h>
-#include <lapmesh/curvature.h>
-#include <lapmesh/io.h>
 
+#include <cstdio>
 #include <iostream>
 #include <memory>
 
@@ -21,13 +20,13 @@ struct Curvature_options
 
 void write_csv(const std::string& path, const lapmesh::Vertex_curvatures& c)
 {
-  lapmesh::io::write_atomically(path, [&](std::ostream& os) {
+  lapmesh_ops::write_text(path, [&](std::ostream& os) {
     os << "vertex,mean,gaussian,k1,k2\n";
     for(Eigen::Index i = 0; i < c.mean.size(); ++i) {
       os << i;
       for(double x : {c.mean[i], c.gaussian[i], c.k1[i], c.k2[i]}) {
         os << ',';
-        lapmesh::io::put_double(os, x);
+        lapmesh_ops::put_double(os, x);
       }
       os << '\n';
     }
@@ -43,10 +42,10 @@ void run(const Curvature_options& o)
     if(!fixed_range) throw Failure("--range: expected 'auto' or MIN:MAX with MIN < MAX, got '" + o.range + "'");
   }
   const Mesh mesh = load_mesh(o.input);
-  const lapmesh::Vertex_curvatures c = or_fail(o.input, [&] {
-    return lapmesh::vertex_curvatures<CGAL::Parallel_if_available_tag>(
-      mesh, lapmesh::parameters::vertex_area(area_from(o.area), lapmesh::parameters::laplacian(laplacian_from(o.laplacian))));
-  });
+  lapmesh_ops::Curvature_settings settings;
+  settings.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
+  settings.area = enum_from<lapmesh::Vertex_area>(o.area);
+  const lapmesh::Vertex_curvatures c = or_fail(o.input, [&] { return lapmesh_ops::curvature(mesh, settings); });
 
   const Eigen::VectorXd& shown = o.quantity == "mean" ? c.mean : o.quantity == "gaussian" ? c.gaussian
                                  : o.quantity == "k1" ? c.k1 : c.k2;
@@ -54,18 +53,16 @@ void run(const Curvature_options& o)
   const lapmesh::Value_range range = fixed_range ? *fixed_range : lapmesh::auto_range(values, o.clip_percent);
 
   or_fail(o.output, [&] {
-    if(lapmesh::io::extension_of(o.output) == "csv") {
+    if(lapmesh_ops::extension_of(o.output) == "csv") {
       write_csv(o.output, c);
     } else {
-      const auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
-      lapmesh::io::Vertex_attributes attributes;
-      if(lapmesh::io::extension_of(o.output) == "ply")
-        attributes.scalars = {{"mean", std::vector<double>(c.mean.data(), c.mean.data() + c.mean.size())},
-                              {"gaussian", std::vector<double>(c.gaussian.data(), c.gaussian.data() + c.gaussian.size())},
-                              {"k1", std::vector<double>(c.k1.data(), c.k1.data() + c.k1.size())},
-                              {"k2", std::vector<double>(c.k2.data(), c.k2.data() + c.k2.size())}};
-      attributes.colors = lapmesh::colorize(values, *lapmesh::parse_colormap(o.colormap), range);
-      lapmesh::io::write_mesh(o.output, P, tris, attributes);
+      std::vector<std::pair<std::string, std::vector<double>>> scalars;
+      auto values_of = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+      if(lapmesh_ops::extension_of(o.output) == "ply")
+        scalars = {{"mean", values_of(c.mean)}, {"gaussian", values_of(c.gaussian)}, {"k1", values_of(c.k1)},
+                   {"k2", values_of(c.k2)}};
+      lapmesh_ops::write_mesh(o.output, mesh, scalars,
+                              lapmesh::colorize(values, *lapmesh::parse_colormap(o.colormap), range));
     }
   });
   if(!o.quiet)

@@ -4,8 +4,6 @@
 #include "cli_common.h"
 #include "svg_plot.h"
 
-#include <lapmesh/denoising.h>
-#include <lapmesh/io.h>
 
 #include <chrono>
 #include <cmath>
@@ -65,14 +63,15 @@ std::vector<double> parse_numbers(const std::string& input, const std::string& o
   return out;
 }
 
-template <typename T, typename Parse>
-std::vector<T> parse_names(const std::string& input, const std::string& option, const std::string& text,
-                           const std::string& allowed, Parse parse)
+template <typename Enum>
+std::vector<Enum> parse_names(const std::string& input, const std::string& option, const std::string& text)
 {
-  std::vector<T> out;
+  std::vector<Enum> out;
   for(const std::string& item : split(text)) {
-    const std::optional<T> v = parse(item);
-    if(!v) throw Failure(input + ": " + option + ": unknown value '" + item + "' (expected " + allowed + ")");
+    const std::optional<Enum> v = lapmesh::parse<Enum>(item);
+    if(!v)
+      throw Failure(input + ": " + option + ": unknown value '" + item + "' (expected " + lapmesh::name_list<Enum>() +
+                    ")");
     out.push_back(*v);
   }
   if(out.empty()) throw Failure(input + ": " + option + ": the list is empty");
@@ -263,23 +262,23 @@ void write_csv(std::ostream& out, const lapmesh::Denoising_study& study, const s
   out << "noise_level,sigma,scheme,laplacian,lambda_" << unit
       << ",lambda,stability_bound,iteration,rms_distance,hausdorff_distance,normal_angle_error_deg,volume_change,status,error\n";
   for(const auto& r : study.records) {
-    lapmesh::io::put_double(out, r.noise_level);
+    lapmesh_ops::put_double(out, r.noise_level);
     out << ',';
-    lapmesh::io::put_double(out, r.sigma);
+    lapmesh_ops::put_double(out, r.sigma);
     out << ',' << lapmesh::to_string(r.scheme) << ',' << lapmesh::to_string(r.laplacian) << ',';
-    lapmesh::io::put_double(out, r.time_step);
+    lapmesh_ops::put_double(out, r.time_step);
     out << ',';
-    lapmesh::io::put_double(out, r.lambda);
+    lapmesh_ops::put_double(out, r.lambda);
     out << ',';
-    lapmesh::io::put_double(out, r.stability_bound);
+    lapmesh_ops::put_double(out, r.stability_bound);
     out << ',' << r.iteration << ',';
-    lapmesh::io::put_double(out, r.deviation.rms_distance);
+    lapmesh_ops::put_double(out, r.deviation.rms_distance);
     out << ',';
-    lapmesh::io::put_double(out, r.deviation.hausdorff_distance);
+    lapmesh_ops::put_double(out, r.deviation.hausdorff_distance);
     out << ',';
-    lapmesh::io::put_double(out, r.deviation.normal_angle_error);
+    lapmesh_ops::put_double(out, r.deviation.normal_angle_error);
     out << ',';
-    lapmesh::io::put_double(out, r.deviation.volume_change);
+    lapmesh_ops::put_double(out, r.deviation.volume_change);
     out << ',' << lapmesh::to_string(r.status) << ',' << csv_field(r.message) << '\n';
   }
 }
@@ -289,22 +288,17 @@ void run(const Study_options& o)
   lapmesh::Denoising_study_settings s;
   s.noise_levels = parse_numbers(o.input, "--levels", o.levels, true);
   s.time_steps = parse_numbers(o.input, "--lambdas", o.lambdas, false);
-  s.schemes = parse_names<lapmesh::Smoothing_scheme>(o.input, "--schemes", o.schemes, "explicit, implicit, conformal", lapmesh::parse_smoothing_scheme);
-  s.laplacians = parse_names<lapmesh::Laplacian>(o.input, "--laplacians", o.laplacians, "uniform, cotangent",
-                                                 [](const std::string& v) { return lapmesh::parse_laplacian(v); });
-  if(o.iterations <= 0)
-    throw Failure(o.input + ": --iterations must be a positive integer (got " + std::to_string(o.iterations) + ")");
-  if(o.iterations > 100000) throw Failure(o.input + ": --iterations is too large (" + std::to_string(o.iterations) + ")");
-  if(!(o.hausdorff_spacing > 0) || !std::isfinite(o.hausdorff_spacing))
-    throw Failure(o.input + ": --hausdorff-spacing must be a positive number");
-  s.iterations = int(o.iterations);
-  s.unit = *lapmesh::parse_time_step_unit(o.lambda_unit);  // CLI11 checked the name
+  s.schemes = parse_names<lapmesh::Smoothing_scheme>(o.input, "--schemes", o.schemes);
+  s.laplacians = parse_names<lapmesh::Laplacian>(o.input, "--laplacians", o.laplacians);
+  s.iterations = int(std::clamp<long long>(o.iterations, -1, 1000000));  // check() names the range
+  s.unit = enum_from<lapmesh::Time_step_unit>(o.lambda_unit);
   s.seed = o.seed;
-  s.noise_direction = o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic;
-  s.area = area_from(o.area);
+  s.noise_direction = enum_from<lapmesh::Noise_direction>(o.direction);
+  s.area = enum_from<lapmesh::Vertex_area>(o.area);
   s.restore_volume = o.restore_volume;
   s.fixed_operator = o.fixed_operator;
   s.hausdorff_spacing = o.hausdorff_spacing;
+  or_fail(o.input, [&] { lapmesh_ops::check(s); });
   check_output_path(o.output, {"csv"});
   if(!o.plot.empty()) check_output_path(o.plot, {"svg"});
 
@@ -322,7 +316,7 @@ void run(const Study_options& o)
   }
   lapmesh::Denoising_study study;
   try {
-    study = or_fail(o.input, [&] { return lapmesh::run_denoising_study(mesh, s); });
+    study = or_fail(o.input, [&] { return lapmesh_ops::denoise_study(mesh, s); });
   } catch(...) {
     if(progress) progress->stop(false);
     throw;
@@ -332,50 +326,31 @@ void run(const Study_options& o)
   // Render everything first, then write: no output at all when something fails.
   std::string plot;
   if(!o.plot.empty()) plot = render_plot(std::filesystem::path(o.input).filename().string(), study, s, o.lambda_unit);
-  or_fail(o.output, [&] { lapmesh::io::write_atomically(o.output, [&](std::ostream& out) { write_csv(out, study, o.lambda_unit); }); });
+  or_fail(o.output, [&] { lapmesh_ops::write_text(o.output, [&](std::ostream& out) { write_csv(out, study, o.lambda_unit); }); });
   if(!o.plot.empty())
-    or_fail(o.plot, [&] { lapmesh::io::write_atomically(o.plot, [&](std::ostream& out) { out << plot; }); });
+    or_fail(o.plot, [&] { lapmesh_ops::write_text(o.plot, [&](std::ostream& out) { out << plot; }); });
 
   if(o.quiet) return;
   std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << study.records.size() << " rows; wrote " << o.output
             << (o.plot.empty() ? "" : " and " + o.plot) << '\n';
-  for(double level : s.noise_levels) {
-    double noisy = std::nan("");
-    for(const auto& r : study.records)
-      if(r.noise_level == level && r.iteration == 0) noisy = r.deviation.rms_distance;
-    for(auto scheme : s.schemes) {
-      std::cout << "level " << level << ", " << lapmesh::to_string(scheme) << ": ";
-      const auto best = study.best(level, scheme);
-      if(!best) {
-        std::cout << "no run stayed bounded\n";
-      } else {
-        std::cout << "best " << lapmesh::to_string(best->laplacian) << " lambda " << best->time_step << " "
-                  << o.lambda_unit << " (" << best->lambda << "), " << best->iteration
-                  << " iteration(s): RMS " << best->deviation.rms_distance << " (noisy " << noisy << "), Hausdorff "
-                  << best->deviation.hausdorff_distance << ", normal error " << best->deviation.normal_angle_error
-                  << " deg\n";
-        // The best run is the least bad one: it can still be further from the clean mesh than
-        // the noisy input was (lambdas too large for the noise, or no noise at all).
-        if(!(best->deviation.rms_distance < noisy))
-          std::cout << "  worse than the noisy input: no " << lapmesh::to_string(scheme)
-                    << " run lowered the RMS distance below the noisy mesh's " << noisy
-                    << " (try smaller --lambdas or fewer --iterations)\n";
-      }
-      // Runs that stopped early, and why (the CSV's error column holds every reason).
-      std::size_t runs = 0, stopped = 0;
-      std::string first_reason;
-      for(const auto& r : study.records)
-        if(r.noise_level == level && r.scheme == scheme && r.iteration == s.iterations) {
-          ++runs;
-          if(r.status != lapmesh::Run_status::ok) {
-            ++stopped;
-            if(first_reason.empty()) first_reason = std::string(lapmesh::to_string(r.laplacian)) + " lambda " + format(r.time_step) + ": " + r.message;
-          }
-        }
-      if(stopped > 0)
-        std::cout << "  " << stopped << " of " << runs << " runs stopped early (failed or diverged; the reason is in the "
-                  << "CSV's error column), e.g. " << first_reason << '\n';
+  for(const lapmesh_ops::Study_summary_line& line : lapmesh_ops::summarize(study, s)) {
+    const char* scheme = lapmesh::to_string(line.scheme);
+    std::cout << "level " << line.noise_level << ", " << scheme << ": ";
+    if(!line.best) {
+      std::cout << "no run stayed bounded\n";
+    } else {
+      const lapmesh::Denoising_record& best = *line.best;
+      std::cout << "best " << lapmesh::to_string(best.laplacian) << " lambda " << best.time_step << " " << o.lambda_unit
+                << " (" << best.lambda << "), " << best.iteration << " iteration(s): RMS " << best.deviation.rms_distance
+                << " (noisy " << line.noisy_rms << "), Hausdorff " << best.deviation.hausdorff_distance
+                << ", normal error " << best.deviation.normal_angle_error << " deg\n";
+      if(line.best_is_worse_than_noisy)
+        std::cout << "  worse than the noisy input: no " << scheme << " run lowered the RMS distance below the noisy mesh's "
+                  << line.noisy_rms << " (try smaller --lambdas or fewer --iterations)\n";
     }
+    if(line.stopped_runs > 0)
+      std::cout << "  " << line.stopped_runs << " of " << line.runs << " runs stopped early (failed or diverged; the reason "
+                << "is in the CSV's error column), e.g. " << line.first_stop_reason << '\n';
   }
 }
 
@@ -399,17 +374,15 @@ void register_denoise_study(CLI::App& app)
     "Progress goes to stderr: redrawn on a terminal, otherwise one line every --progress-interval seconds.\n");
   add_input_output(*cmd, o->input, o->output, "output table (.csv)");
   cmd->add_option("--levels", o->levels, "comma-separated noise levels (>= 0)")->capture_default_str();
-  cmd->add_option("--schemes", o->schemes, "comma-separated: explicit, implicit, conformal")->capture_default_str();
-  cmd->add_option("--laplacians", o->laplacians, "comma-separated: uniform, cotangent")->capture_default_str();
+  cmd->add_option("--schemes", o->schemes, "comma-separated: " + lapmesh::name_list<lapmesh::Smoothing_scheme>())->capture_default_str();
+  cmd->add_option("--laplacians", o->laplacians, "comma-separated: " + lapmesh::name_list<lapmesh::Laplacian>())->capture_default_str();
   cmd->add_option("--lambdas", o->lambdas, "comma-separated time steps (> 0), in --lambda-unit")->capture_default_str();
-  cmd->add_option("--lambda-unit", o->lambda_unit, "unit of --lambdas: edge2, bound or absolute")
-    ->check(CLI::IsMember({"absolute", "edge2", "bound"}))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Time_step_unit>(*cmd, "--lambda-unit", o->lambda_unit,
+                                           "unit of --lambdas: " + lapmesh::name_list<lapmesh::Time_step_unit>());
   cmd->add_option("--iterations", o->iterations, "iterations per run (> 0)")->capture_default_str();
   cmd->add_option("--seed", o->seed, "random seed of the noise")->capture_default_str();
-  cmd->add_option("--direction", o->direction, "noise direction: isotropic or normal")
-    ->check(CLI::IsMember({"isotropic", "normal"}))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Noise_direction>(*cmd, "--direction", o->direction,
+                                            "noise direction: " + lapmesh::name_list<lapmesh::Noise_direction>());
   add_area_option(*cmd, o->area);
   cmd->add_flag("--restore-volume", o->restore_volume, "restore the enclosed volume after each step (closed meshes)");
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the noisy mesh for all iterations");

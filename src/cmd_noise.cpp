@@ -1,10 +1,6 @@
 // lapmesh noise IN -o OUT --level F: seeded Gaussian vertex noise, reproducible everywhere.
 #include "cli_common.h"
 
-#include <lapmesh/io.h>
-#include <lapmesh/noise.h>
-
-#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -21,20 +17,16 @@ struct Noise_options
 
 void run(const Noise_options& o)
 {
-  if(!(o.level >= 0) || !std::isfinite(o.level))
-    throw Failure(o.input + ": --level must be a finite number >= 0 (got " + std::to_string(o.level) + ")");
-  check_output_path(o.output, {"off", "obj", "ply", "stl"});
+  lapmesh_ops::Noise_settings s;
+  s.level = o.level;
+  s.seed = o.seed;
+  s.direction = enum_from<lapmesh::Noise_direction>(o.direction);
+  s.scale = enum_from<lapmesh::Noise_scale>(o.scale);
+  or_fail(o.input, [&] { lapmesh_ops::check(s); });
+  check_output_path(o.output, lapmesh_ops::mesh_output_formats());
   Mesh mesh = load_mesh(o.input);
-  namespace LP = lapmesh::parameters;
-  const auto direction = o.direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic;
-  const auto scale = o.scale == "bbox" ? lapmesh::Noise_scale::bounding_box_diagonal : lapmesh::Noise_scale::mean_edge_length;
-  const double sigma = or_fail(o.input, [&] {
-    return lapmesh::add_noise(mesh, o.level, LP::noise_seed(o.seed, LP::noise_direction(direction, LP::noise_scale(scale))));
-  });
-  or_fail(o.output, [&] {
-    const auto [positions, triangles] = lapmesh::io::mesh_arrays(mesh);
-    lapmesh::io::write_mesh(o.output, positions, triangles);
-  });
+  const double sigma = or_fail(o.input, [&] { return lapmesh_ops::add_noise(mesh, s); });
+  or_fail(o.output, [&] { lapmesh_ops::write_mesh(o.output, mesh); });
   if(!o.quiet)
     std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << o.direction << " noise, sigma " << sigma
               << " (level " << o.level << " x " << o.scale << "), seed " << o.seed << "; wrote " << o.output << '\n';
@@ -53,12 +45,9 @@ void register_noise(CLI::App& app)
   add_input_output(*cmd, o->input, o->output, "output mesh (.off, .obj, .ply, .stl)");
   cmd->add_option("--level", o->level, "noise level (>= 0), relative to --scale")->required();
   cmd->add_option("--seed", o->seed, "random seed")->capture_default_str();
-  cmd->add_option("--scale", o->scale, "mean-edge or bbox")
-    ->check(CLI::IsMember({"mean-edge", "bbox"}))
-    ->capture_default_str();
-  cmd->add_option("--direction", o->direction, "isotropic or normal")
-    ->check(CLI::IsMember({"isotropic", "normal"}))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Noise_scale>(*cmd, "--scale", o->scale, lapmesh::name_list<lapmesh::Noise_scale>());
+  add_enum_option<lapmesh::Noise_direction>(*cmd, "--direction", o->direction,
+                                            lapmesh::name_list<lapmesh::Noise_direction>());
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
   cmd->callback([o] { run(*o); });
 }

@@ -2,7 +2,6 @@
 // x <- sum_{i<k} (x^T M phi_i) phi_i per coordinate, with the input's vertex order and faces.
 #include "cli_common.h"
 
-#include <lapmesh/io.h>
 #include <lapmesh/spectral_reconstruction.h>
 
 #include <iostream>
@@ -18,60 +17,46 @@ struct Reconstruct_options
   bool quiet = false;
 };
 
-lapmesh::Spectral_basis load_basis(const Reconstruct_options& o, const Mesh& mesh, bool laplacian_given,
-                                   bool area_given)
-{
-  lapmesh::Spectral_basis b;
-  try {
-    b = lapmesh::Spectral_basis::load(o.load_basis);
-  } catch(const std::exception& e) {
-    throw Failure(o.load_basis + ": " + e.what());
-  }
-  if(b.num_vertices() != (long long)num_vertices(mesh))
-    throw Failure(o.load_basis + ": the basis has " + std::to_string(b.num_vertices()) + " vertices, " + o.input +
-                  " has " + std::to_string(num_vertices(mesh)));
-  if((laplacian_given && b.laplacian() != laplacian_from(o.laplacian)) ||
-     (area_given && b.vertex_area() != area_from(o.area)))
-    throw Failure(o.load_basis + ": the basis was computed with --laplacian " + lapmesh::to_string(b.laplacian()) +
-                  " --area " + lapmesh::to_string(b.vertex_area()) + ", not the options given");
-  // The mass of the mesh must be the basis's: catches a basis of another mesh with as many vertices.
-  const Eigen::VectorXd mass = lapmesh::laplacian_pencil(mesh, lapmesh::parameters::vertex_area(
-                                                                 b.vertex_area(), lapmesh::parameters::laplacian(b.laplacian())))
-                                 .mass;
-  if((mass - b.mass()).cwiseAbs().maxCoeff() > 1e-9 * mass.cwiseAbs().maxCoeff())
-    throw Failure(o.load_basis + ": the basis does not belong to " + o.input + " (different vertex masses)");
-  return b;
-}
-
 void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
 {
-  check_output_path(o.output, {"off", "obj", "ply", "stl"});
-  const Mesh mesh = load_mesh(o.input);
+  check_output_path(o.output, lapmesh_ops::mesh_output_formats());
+  Mesh mesh = load_mesh(o.input);
   const long long n = (long long)num_vertices(mesh);
-  const long long k = spectral_k_from(o.input, o.k, n);
-  lapmesh::Spectral_basis basis;
+  lapmesh_ops::Reconstruct_settings s;
+  s.k = spectral_k_from(o.input, o.k, n);
+  s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
+  s.area = enum_from<lapmesh::Vertex_area>(o.area);
+  s.progress = spectral_progress_printer();
+  std::shared_ptr<const lapmesh::Spectral_basis> basis;
   if(!o.load_basis.empty()) {
-    basis = load_basis(o, mesh, laplacian_given, area_given);
-    if(k > basis.size())
+    basis = or_fail(o.load_basis, [&] {
+      auto b = std::make_shared<const lapmesh::Spectral_basis>(lapmesh::Spectral_basis::load(o.load_basis));
+      lapmesh_ops::check_basis_fits(*b, mesh, laplacian_given ? std::optional(s.laplacian) : std::nullopt,
+                                    area_given ? std::optional(s.area) : std::nullopt);
+      return b;
+    });
+    if(s.k > basis->size())
       throw Failure(o.input + ": -k " + o.k + " is out of range: the basis " + o.load_basis + " holds " +
-                    std::to_string(basis.size()) + " eigenpairs");
-  } else {
-    const long long basis_size =
-      o.basis_size.empty() ? 0 : parse_count_option(o.input, "--basis-size", o.basis_size, 0, n, ", the number of vertices");
-    const long long m = std::max(k, basis_size);
-    basis = compute_spectral_basis(o.input, mesh, m, o.laplacian, o.area);
+                    std::to_string(basis->size()) + " eigenpairs");
+  } else if(!o.basis_size.empty()) {
+    s.basis_size = parse_count_option(o.input, "--basis-size", o.basis_size, 0, n, ", the number of vertices");
   }
-  auto [P, tris] = lapmesh::io::mesh_arrays(mesh);
-  const Eigen::MatrixXd R = basis.reconstruct(P, k);
-  if(basis.splits_eigenspace(k))
-    std::cerr << o.input << ": warning: lambda_" << k - 1 << " and lambda_" << k
-              << " agree to 1e-8 relative; the reconstruction depends on the basis chosen inside that eigenspace\n";
-  if(!o.save_basis.empty()) or_fail(o.save_basis, [&] { basis.save(o.save_basis); });
-  or_fail(o.output, [&] { lapmesh::io::write_mesh(o.output, R, tris); });
+  lapmesh_ops::Reconstruction r;
+  try {
+    r = or_fail(o.input, [&] { return lapmesh_ops::reconstruct(mesh, s, basis); });
+  } catch(...) {
+    clear_progress_line();
+    throw;
+  }
+  clear_progress_line();
+  print_warnings(o.input, r.warnings);
+  if(!o.save_basis.empty()) or_fail(o.save_basis, [&] { r.basis->save(o.save_basis); });
+  lapmesh_ops::set_positions(mesh, r.positions);
+  or_fail(o.output, [&] { lapmesh_ops::write_mesh(o.output, mesh); });
   if(!o.quiet)
-    std::cout << o.input << ": " << n << " vertices reconstructed from " << k << " eigenvectors ("
-              << lapmesh::to_string(basis.laplacian()) << ", " << lapmesh::to_string(basis.vertex_area())
-              << " area; basis of " << basis.size() << "); wrote " << o.output << '\n';
+    std::cout << o.input << ": " << n << " vertices reconstructed from " << s.k << " eigenvectors ("
+              << lapmesh::to_string(r.basis->laplacian()) << ", " << lapmesh::to_string(r.basis->vertex_area())
+              << " area; basis of " << r.basis->size() << "); wrote " << o.output << '\n';
 }
 
 } // namespace

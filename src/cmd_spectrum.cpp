@@ -1,42 +1,15 @@
 // lapmesh spectrum IN -o OUT.csv -k K: the k smallest Laplace–Beltrami eigenvalues.
 #include "cli_common.h"
 
-#include <lapmesh/io.h>
 #include <lapmesh/spectral_reconstruction.h>
 
-#include <algorithm>
-#include <cstdio>
 #include <iostream>
 #include <memory>
 #include <string>
 
-#include <unistd.h>
-
 namespace lapmesh_cli {
 
 namespace {
-
-// The progress line of the eigensolver, shown only when stderr is a terminal.
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
-{
-  if(!::isatty(2)) return {};
-  // The block solver reports after every block step (hundreds per second on small meshes):
-  // redraw on a new stage or attempt, otherwise at most ten times a second.
-  return [last_stage = std::string(), last_attempt = 0, last_time = -1.0](const lapmesh::Spectral_progress& p) mutable {
-    if(p.stage == last_stage && p.attempt == last_attempt && p.elapsed_seconds < last_time + 0.1) return;
-    last_stage = p.stage;
-    last_attempt = p.attempt;
-    last_time = p.elapsed_seconds;
-    std::fprintf(stderr, "\r%s (attempt %d): %lld solves, %.1f s   ", p.stage, p.attempt, p.operations,
-                 p.elapsed_seconds);
-    std::fflush(stderr);
-  };
-}
-
-void clear_progress_line()
-{
-  if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
-}
 
 struct Spectrum_options
 {
@@ -49,49 +22,36 @@ void run(const Spectrum_options& o)
   check_output_path(o.output, {"csv"});
   const Mesh mesh = load_mesh(o.input);
   const long long n = (long long)num_vertices(mesh);
-  const long long k = spectral_k_from(o.input, o.k, n);
-  const lapmesh::Spectral_basis basis = compute_spectral_basis(o.input, mesh, k, o.laplacian, o.area);
+  lapmesh_ops::Spectral_settings s;
+  s.k = spectral_k_from(o.input, o.k, n);
+  s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
+  s.area = enum_from<lapmesh::Vertex_area>(o.area);
+  s.progress = spectral_progress_printer();
+  std::shared_ptr<const lapmesh::Spectral_basis> basis;
+  try {
+    basis = or_fail(o.input, [&] { return lapmesh_ops::spectral_basis(mesh, s); });
+  } catch(...) {
+    clear_progress_line();
+    throw;
+  }
+  clear_progress_line();
+  const Eigen::VectorXd& values = basis->eigenvalues();
   or_fail(o.output, [&] {
-    lapmesh::io::write_atomically(o.output, [&](std::ostream& os) {
+    lapmesh_ops::write_text(o.output, [&](std::ostream& os) {
       os << "index,eigenvalue\n";
-      for(long long i = 0; i < k; ++i) {
+      for(long long i = 0; i < s.k; ++i) {
         os << i << ',';
-        lapmesh::io::put_double(os, basis.eigenvalues()[i]);
+        lapmesh_ops::put_double(os, values[i]);
         os << '\n';
       }
     });
   });
   if(!o.quiet)
-    std::cout << o.input << ": " << n << " vertices; " << k << " smallest eigenvalues (" << o.laplacian << ", "
-              << o.area << " area) in [" << basis.eigenvalues()[0] << ", " << basis.eigenvalues()[k - 1]
-              << "]; wrote " << o.output << '\n';
+    std::cout << o.input << ": " << n << " vertices; " << s.k << " smallest eigenvalues (" << o.laplacian << ", "
+              << o.area << " area) in [" << values[0] << ", " << values[s.k - 1] << "]; wrote " << o.output << '\n';
 }
 
 } // namespace
-
-lapmesh::Spectral_basis compute_spectral_basis(const std::string& input, const Mesh& mesh, long long count,
-                                               const std::string& laplacian, const std::string& area)
-{
-  namespace LP = lapmesh::parameters;
-  try {
-    lapmesh::Spectral_basis basis = or_fail(input, [&] {
-      return lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-        mesh, count,
-        LP::spectral_progress(spectral_progress_printer(),
-                              LP::vertex_area(area_from(area), LP::laplacian(laplacian_from(laplacian)))));
-    });
-    clear_progress_line();
-    return basis;
-  } catch(...) {
-    clear_progress_line();
-    throw;
-  }
-}
-
-long long spectral_k_from(const std::string& input, const std::string& text, long long n)
-{
-  return parse_count_option(input, "-k", text, 1, n, ", the number of vertices");
-}
 
 void register_spectrum(CLI::App& app)
 {

@@ -1,12 +1,14 @@
 // lapmesh — colour maps for per-vertex scalars, with automatic and explicit ranges.
 //
 // Maps: jet (the seed report's), viridis (perceptually uniform), coolwarm (diverging, for
-// signed values), gray. colormap_names() is the one list of their names: the CLI's choices,
-// its error messages and doc/cli.md follow it. The viridis and coolwarm tables are sampled at
+// signed values), gray. Their names are the Colormap table of types.h (colormap_names() lists
+// them with the maps): the CLI's choices, its error messages and doc/cli.md follow it. The viridis and coolwarm tables are sampled at
 // nine points and interpolated linearly in sRGB, which is within one 8-bit step of the
 // published maps for viridis and close for coolwarm.
 #ifndef LAPMESH_COLORMAP_H
 #define LAPMESH_COLORMAP_H
+
+#include <lapmesh/types.h>
 
 #include <algorithm>
 #include <array>
@@ -18,9 +20,6 @@
 #include <vector>
 
 namespace lapmesh {
-
-/// A colour map for per-vertex scalars (the CLI's `--colormap`).
-enum class Colormap { jet, viridis, coolwarm, gray };
 
 /// An 8-bit RGB colour.
 struct Rgb
@@ -40,25 +39,18 @@ struct Colormap_name
 /// The colour maps by name, in the order the documentation lists them.
 inline const std::array<Colormap_name, 4>& colormap_names()
 {
-  static const std::array<Colormap_name, 4> names = {
-    {{"jet", Colormap::jet}, {"viridis", Colormap::viridis}, {"coolwarm", Colormap::coolwarm}, {"gray", Colormap::gray}}};
+  static const std::array<Colormap_name, 4> names = [] {
+    std::array<Colormap_name, 4> out{};
+    for(std::size_t i = 0; i < out.size(); ++i) out[i] = {name_table<Colormap>()[i].name, name_table<Colormap>()[i].value};
+    return out;
+  }();
   return names;
 }
 
 /// The names of colormap_names() joined by `separator` (for option help and error messages).
 inline std::string colormap_name_list(const std::string& separator = ", ")
 {
-  std::string out;
-  for(const auto& n : colormap_names()) out += (out.empty() ? "" : separator) + n.name;
-  return out;
-}
-
-/// The name of a colour map (its entry in colormap_names()).
-inline const char* to_string(Colormap map)
-{
-  for(const auto& n : colormap_names())
-    if(n.map == map) return n.name;
-  return "unknown";
+  return name_list<Colormap>(separator);
 }
 
 /// @brief returns the colour map named `s` (a name of colormap_names()), or nothing. The
@@ -66,8 +58,7 @@ inline const char* to_string(Colormap map)
 /// but are no longer offered or listed.
 inline std::optional<Colormap> parse_colormap(const std::string& s)
 {
-  for(const auto& n : colormap_names())
-    if(s == n.name) return n.map;
+  if(const auto map = parse<Colormap>(s)) return map;
   if(s == "diverging") return Colormap::coolwarm;
   if(s == "grey") return Colormap::gray;
   return std::nullopt;

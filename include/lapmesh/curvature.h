@@ -24,18 +24,6 @@
 
 namespace lapmesh {
 
-/// Per-vertex curvature quantities, entry i = vertex i of the vertex numbering.
-struct Vertex_curvatures
-{
-  Eigen::VectorXd mean;          ///< H, signed (outward normals: sphere has +1/r)
-  Eigen::VectorXd gaussian;      ///< K, angle deficit over the vertex area
-  Eigen::VectorXd k1;            ///< larger principal curvature, k1 = H + sqrt(max(H^2 - K, 0))
-  Eigen::VectorXd k2;            ///< smaller principal curvature, k2 = H - sqrt(max(H^2 - K, 0)) <= k1
-  Eigen::VectorXd area;          ///< A_i of the chosen kind (the denominator of K)
-  Vertex_vectors normal;         ///< unit area-weighted vertex normals
-  Vertex_vectors laplacian;      ///< (L x)_i, the Laplacian of the positions (= -2 H n on smooth parts)
-};
-
 namespace internal {
 
 /// The sign factor s_i of doc/conventions.md: -1 when L x points along the normal beyond round-off.

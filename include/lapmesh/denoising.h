@@ -37,16 +37,6 @@
 
 namespace lapmesh {
 
-/// How far a mesh is from a reference with the same connectivity. Lengths are relative to the
-/// bounding-box diagonal of the reference.
-struct Mesh_deviation
-{
-  double rms_distance = 0;        ///< RMS of the vertex-to-vertex distances / diagonal
-  double hausdorff_distance = 0;  ///< symmetric approximate Hausdorff distance / diagonal
-  double normal_angle_error = 0;  ///< mean angle between area-weighted vertex normals, degrees
-  double volume_change = std::numeric_limits<double>::quiet_NaN();  ///< (V - V_ref)/|V_ref|; NaN if open
-};
-
 /// double; default 1: grid spacing of the Hausdorff sampling, in units of the reference's
 /// mean edge length (vertices are always sampled).
 LAPMESH_NAMED_PARAMETER(hausdorff_spacing)
@@ -196,87 +186,6 @@ Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh&
   internal::Deviation_meter meter(ref.topology, ref.positions, spacing);
   return meter.measure(cur.positions);
 }
-
-/// Where a denoising study stands, passed to `Denoising_study_settings::progress`.
-struct Denoising_progress
-{
-  std::size_t runs_done = 0;   ///< runs finished
-  std::size_t total_runs = 0;  ///< levels x schemes x Laplacians x time steps
-  double noise_level = 0;      ///< of the current (or just finished) run
-  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< of the current run
-  Laplacian laplacian = Laplacian::cotangent;                  ///< of the current run
-  double time_step = 0;  ///< of the current run, in the settings' unit
-  int iteration = 0;     ///< steps measured in the current run
-  int iterations = 0;    ///< steps per run
-};
-
-/// What the denoising study runs. Every combination of level, scheme, Laplacian and time step
-/// is one run of `iterations` steps on the same noisy mesh (per level).
-struct Denoising_study_settings
-{
-  std::vector<double> noise_levels{0.02, 0.05, 0.1};  ///< noise levels (sigma = level x noise_scale)
-  std::vector<Smoothing_scheme> schemes{Smoothing_scheme::explicit_euler,
-                                        Smoothing_scheme::implicit_euler};  ///< schemes compared
-  std::vector<Laplacian> laplacians{Laplacian::uniform, Laplacian::cotangent};  ///< Laplacians compared
-  std::vector<double> time_steps{0.03, 0.1, 0.3, 1.0, 3.0};  ///< time steps, in `unit`
-  Time_step_unit unit = Time_step_unit::mean_edge_length_squared;  ///< unit of `time_steps`
-  int iterations = 20;  ///< smoothing steps per run (one record after each)
-  std::uint64_t seed = 1;  ///< the same seed for every level: the noise differs only in scale
-  Noise_direction noise_direction = Noise_direction::isotropic;  ///< isotropic or along the normals
-  Noise_scale noise_scale = Noise_scale::mean_edge_length;        ///< what the level multiplies
-  Vertex_area area = Vertex_area::barycentric;                    ///< vertex area of the operators
-  bool restore_volume = false;  ///< closed meshes only
-  bool fixed_operator = false;  ///< keep the noisy mesh's operator for all iterations
-  double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh
-  /// Called after each measured iteration and after each run (then `runs_done` has grown).
-  std::function<void(const Denoising_progress&)> progress;
-};
-
-/// How a run of the denoising study ended.
-enum class Run_status {
-  ok,        ///< finite and within one bounding-box diagonal of the clean mesh
-  diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
-  failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
-};
-/// The name of a run status: "ok", "diverged" or "failed".
-inline const char* to_string(Run_status s)
-{
-  return s == Run_status::ok ? "ok" : s == Run_status::diverged ? "diverged" : "failed";
-}
-
-/// One measurement: the state after `iteration` steps (0: the noisy mesh).
-struct Denoising_record
-{
-  double noise_level = 0;  ///< the noise level of this run
-  double sigma = 0;  ///< the noise's standard deviation (absolute)
-  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< the scheme of this run
-  Laplacian laplacian = Laplacian::cotangent;                  ///< the Laplacian of this run
-  double time_step = 0;        ///< in the settings' unit
-  double lambda = 0;           ///< absolute
-  double stability_bound = 0;  ///< 2 / mu_max of the noisy mesh for this Laplacian (absolute)
-  int iteration = 0;                   ///< steps done (0: the noisy mesh)
-  Mesh_deviation deviation;            ///< the metrics against the clean mesh
-  Run_status status = Run_status::ok;  ///< how the run stands after this step
-  std::string message;  ///< the error, for failed runs
-};
-
-/// The records of a denoising study, and the best run per noise level and scheme.
-struct Denoising_study
-{
-  std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration
-
-  /// The record with the smallest RMS distance among the `ok` records after at least one
-  /// step for this level and scheme (all Laplacians and time steps), if any.
-  std::optional<Denoising_record> best(double level, Smoothing_scheme scheme) const
-  {
-    std::optional<Denoising_record> out;
-    for(const auto& r : records)
-      if(r.noise_level == level && r.scheme == scheme && r.iteration > 0 && r.status == Run_status::ok &&
-         std::isfinite(r.deviation.rms_distance) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
-        out = r;
-    return out;
-  }
-};
 
 namespace internal {
 

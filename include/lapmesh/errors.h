@@ -1,14 +1,20 @@
 // lapmesh — the exceptions the library throws.
 //
 // Every failure on bad input is reported, never turned into NaN or a silent early stop:
-// Mesh_error names the offending vertex or face (in the vertex/face index order of the
-// input), Numerical_error reports a failed factorisation, solve or eigen-solve.
+//   Mesh_error        the mesh cannot be processed; names the offending vertex or face (in the
+//                     vertex/face index order of the input)
+//   Numerical_error   a factorisation, solve or eigen-solve failed
+//   Io_error          a file cannot be read or written, or its content is malformed
+//   Parameter_error   a setting is out of its range or conflicts with another; names the
+//                     setting, so that each front end can point at its own spelling of it
+// Parameter_error is a std::invalid_argument, as every other rejected argument.
 #ifndef LAPMESH_ERRORS_H
 #define LAPMESH_ERRORS_H
 
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace lapmesh {
 
@@ -41,6 +47,33 @@ class Numerical_error : public std::runtime_error
 {
 public:
   using std::runtime_error::runtime_error;
+};
+
+/// A file cannot be read or written, or its content is malformed. what() does not repeat
+/// the file name: callers prefix it ("cow.off: line 12: ...").
+class Io_error : public std::runtime_error
+{
+public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A setting is invalid: out of range, or in conflict with another setting or the mesh.
+/// parameter() is the setting's name in the library (the named parameter or the settings
+/// field, e.g. "fix_boundary"); what() does not spell any front end's option. When setting
+/// parameter() to suggested_value() resolves a conflict, the error says so.
+class Parameter_error : public std::invalid_argument
+{
+public:
+  Parameter_error(std::string parameter, const std::string& what, std::string suggested_value = {})
+    : std::invalid_argument(what), m_parameter(std::move(parameter)), m_suggested_value(std::move(suggested_value))
+  {}
+  /// The name of the setting at fault (or to change).
+  const std::string& parameter() const { return m_parameter; }
+  /// A value of parameter() that resolves the problem, or "" if the message is about its range.
+  const std::string& suggested_value() const { return m_suggested_value; }
+
+private:
+  std::string m_parameter, m_suggested_value;
 };
 
 } // namespace lapmesh

@@ -23,9 +23,6 @@
 
 namespace lapmesh {
 
-/// n x 3 per-vertex vectors (positions, normals, Laplacians), row i = vertex i.
-using Vertex_vectors = internal::Positions;
-
 /// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (doc/conventions.md).
 struct Laplacian_pencil
 {

@@ -16,17 +16,13 @@
 #include <lapmesh/internal/mesh_extraction.h>
 #include <lapmesh/internal/smoothing_engine.h>
 #include <lapmesh/parameters.h>
+#include <lapmesh/types.h>
 
 #include <cmath>
 #include <cstdint>
 #include <random>
 
 namespace lapmesh {
-
-/// The direction of the displacements: a Gaussian 3-vector, or a Gaussian scalar times the vertex normal.
-enum class Noise_direction { isotropic, normal };
-/// The length that the noise level multiplies to give sigma.
-enum class Noise_scale { mean_edge_length, bounding_box_diagonal };
 
 /// Noise_direction; default isotropic.
 LAPMESH_NAMED_PARAMETER(noise_direction)

@@ -1,4 +1,4 @@
-// lapmesh — named parameters and the kinds of operator.
+// lapmesh — named parameters (the enumerations they take are declared in types.h).
 //
 // lapmesh's options travel in CGAL's Named_function_parameters packs, so they mix with
 // CGAL's own tags (vertex_point_map, geom_traits, vertex_index_map, ...). CGAL 5.5 only
@@ -14,6 +14,8 @@
 #ifndef LAPMESH_PARAMETERS_H
 #define LAPMESH_PARAMETERS_H
 
+#include <lapmesh/types.h>
+
 #include <CGAL/Named_function_parameters.h>
 #include <CGAL/boost/graph/named_params_helper.h>
 
@@ -22,46 +24,6 @@
 #include <string>
 
 namespace lapmesh {
-
-/// The discretisation of the Laplacian (doc/conventions.md).
-enum class Laplacian {
-  uniform,   ///< graph Laplacian: stiffness W = A - D, mass D = diag(degree)
-  cotangent  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
-};
-
-/// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (doc/conventions.md).
-enum class Vertex_area {
-  barycentric,  ///< one third of the incident face areas (default)
-  voronoi,      ///< circumcentric cells; can be zero or negative on obtuse meshes
-  mixed         ///< Meyer et al. 2003 mixed cells; positive, sums to the surface area
-};
-
-/// @brief returns the name of `k` as the CLI spells it (`uniform`, `cotangent`).
-inline const char* to_string(Laplacian k) { return k == Laplacian::uniform ? "uniform" : "cotangent"; }
-/// @brief returns the name of `a` as the CLI spells it (`barycentric`, `voronoi`, `mixed`).
-inline const char* to_string(Vertex_area a)
-{
-  switch(a) {
-    case Vertex_area::barycentric: return "barycentric";
-    case Vertex_area::voronoi: return "voronoi";
-    default: return "mixed";
-  }
-}
-/// @brief returns the Laplacian named `s`, or nothing for an unknown name.
-inline std::optional<Laplacian> parse_laplacian(const std::string& s)
-{
-  if(s == "uniform") return Laplacian::uniform;
-  if(s == "cotangent") return Laplacian::cotangent;
-  return std::nullopt;
-}
-/// @brief returns the vertex area named `s`, or nothing for an unknown name.
-inline std::optional<Vertex_area> parse_vertex_area(const std::string& s)
-{
-  if(s == "barycentric") return Vertex_area::barycentric;
-  if(s == "voronoi") return Vertex_area::voronoi;
-  if(s == "mixed") return Vertex_area::mixed;
-  return std::nullopt;
-}
 
 // Declares the tag `internal_np::NAME` and the two free functions `parameters::NAME(value)`
 // (start a pack) and `parameters::NAME(value, pack)` (append to an existing pack).

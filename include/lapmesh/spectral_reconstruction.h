@@ -14,6 +14,7 @@
 #define LAPMESH_SPECTRAL_RECONSTRUCTION_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/atomic_file.h>
 #include <lapmesh/internal/spectral_solver.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/parameters.h>
@@ -24,7 +25,6 @@
 #include <fstream>
 #include <string>
 
-#include <unistd.h>
 
 namespace lapmesh {
 
@@ -186,10 +186,7 @@ public:
   /// double eigenvectors[n*m] column by column.
   void save(const std::string& path) const
   {
-    const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-    {
-      std::ofstream os(tmp, std::ios::binary | std::ios::trunc);
-      if(!os) throw std::runtime_error("cannot open the file for writing");
+    internal::write_file_atomically(path, [&](std::ostream& os) {
       os.write("LAPMSB01", 8);
       const std::int64_t hdr[3] = {num_vertices(), size(), m_requested};
       os.write(reinterpret_cast<const char*>(hdr), sizeof hdr);
@@ -198,34 +195,38 @@ public:
       os.write(reinterpret_cast<const char*>(m_mass.data()), std::streamsize(sizeof(double) * m_mass.size()));
       os.write(reinterpret_cast<const char*>(m_values.data()), std::streamsize(sizeof(double) * m_values.size()));
       os.write(reinterpret_cast<const char*>(m_vectors.data()), std::streamsize(sizeof(double) * m_vectors.size()));
-      os.flush();
-      if(!os) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error("write error");
-      }
-    }
-    if(std::rename(tmp.c_str(), path.c_str()) != 0) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error("cannot rename the temporary file onto the target");
-    }
+    });
   }
 
-  /// @brief reads a basis written by save(). Throws std::runtime_error on a malformed file.
+  /// @brief reads a basis written by save(). Throws Io_error on a file that cannot be read,
+  /// or whose header or size is not that of a basis file; nothing is allocated before the
+  /// header's counts are checked against the file's size.
   static Spectral_basis load(const std::string& path)
   {
     std::ifstream is(path, std::ios::binary);
-    if(!is) throw std::runtime_error("cannot open the file for reading");
+    if(!is) throw Io_error("cannot open the file for reading");
     char magic[8];
     if(!is.read(magic, 8) || std::memcmp(magic, "LAPMSB01", 8) != 0)
-      throw std::runtime_error("not a lapmesh spectral basis file (bad magic)");
+      throw Io_error("not a lapmesh spectral basis file (bad magic)");
     std::int64_t hdr[3];
     std::int32_t kinds[2];
     if(!is.read(reinterpret_cast<char*>(hdr), sizeof hdr) || !is.read(reinterpret_cast<char*>(kinds), sizeof kinds))
-      throw std::runtime_error("truncated spectral basis file");
+      throw Io_error("truncated spectral basis file");
     const std::int64_t n = hdr[0], m = hdr[1];
     if(n < 1 || m < 1 || m > n || hdr[2] < 1 || hdr[2] > m || kinds[0] < 0 || kinds[0] > 1 || kinds[1] < 0 ||
        kinds[1] > 2)
-      throw std::runtime_error("malformed spectral basis file header");
+      throw Io_error("malformed spectral basis file header");
+    // n + m + n m doubles must be exactly what follows the header (checked without overflow).
+    const std::streamoff header_bytes = 8 + sizeof hdr + sizeof kinds;
+    is.seekg(0, std::ios::end);
+    const std::streamoff file_bytes = is.tellg();
+    is.seekg(header_bytes);
+    const std::uint64_t payload = std::uint64_t(file_bytes - header_bytes) / sizeof(double);
+    if(file_bytes < header_bytes || (file_bytes - header_bytes) % std::streamoff(sizeof(double)) != 0 ||
+       std::uint64_t(n) > payload || std::uint64_t(m) > payload / std::uint64_t(n + 1) ||
+       std::uint64_t(n) + std::uint64_t(m) * std::uint64_t(n + 1) != payload)
+      throw Io_error("truncated or oversized spectral basis file (the header declares " + std::to_string(n) +
+                     " vertices and " + std::to_string(m) + " pairs)");
     Spectral_basis b;
     b.m_requested = hdr[2];
     b.m_laplacian = kinds[0] == 0 ? Laplacian::uniform : Laplacian::cotangent;
@@ -236,7 +237,7 @@ public:
     is.read(reinterpret_cast<char*>(b.m_mass.data()), std::streamsize(sizeof(double) * n));
     is.read(reinterpret_cast<char*>(b.m_values.data()), std::streamsize(sizeof(double) * m));
     is.read(reinterpret_cast<char*>(b.m_vectors.data()), std::streamsize(sizeof(double) * n * m));
-    if(!is || is.peek() != std::char_traits<char>::eof()) throw std::runtime_error("truncated or oversized spectral basis file");
+    if(!is) throw Io_error("truncated spectral basis file");
     return b;
   }
 

@@ -11,6 +11,7 @@
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/parameters.h>
+#include <lapmesh/types.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -27,7 +28,7 @@ namespace lapmesh {
 namespace internal {
 
 /// n x 3 vertex positions; row-major so that a vertex's coordinates are contiguous.
-using Positions = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using Positions = Vertex_vectors;
 
 struct Corner_geometry
 {

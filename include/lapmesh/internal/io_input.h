@@ -10,6 +10,8 @@
 #ifndef LAPMESH_INTERNAL_IO_INPUT_H
 #define LAPMESH_INTERNAL_IO_INPUT_H
 
+#include <lapmesh/errors.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstddef>
@@ -24,14 +26,6 @@
 #include <unistd.h>
 
 namespace lapmesh {
-
-/// A file cannot be read or written, or its content is malformed. what() does not repeat
-/// the file name: callers prefix it ("cow.off: line 12: ...").
-class Io_error : public std::runtime_error
-{
-public:
-  using std::runtime_error::runtime_error;
-};
 
 namespace io {
 namespace internal {

@@ -35,66 +35,6 @@
 
 namespace lapmesh {
 
-/// The time discretisation of the Laplacian flow.
-enum class Smoothing_scheme {
-  explicit_euler,  ///< P <- P + lambda L P (forward Euler); stable only below the bound
-  implicit_euler,  ///< (M - lambda S) P' = M P (backward Euler); unconditionally stable
-  conformal        ///< conformalized mean curvature flow (Kazhdan et al. 2012): S of the input, M updated
-};
-
-/// The unit in which a time step is given (smoothing, the denoising study, the viewer).
-enum class Time_step_unit {
-  absolute,                  ///< lambda itself
-  mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
-  stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the mesh
-};
-
-/// The name of a scheme as the command line spells it: "explicit", "implicit" or "conformal".
-inline const char* to_string(Smoothing_scheme s)
-{
-  return s == Smoothing_scheme::explicit_euler ? "explicit" : s == Smoothing_scheme::implicit_euler ? "implicit" : "conformal";
-}
-
-/// @brief returns the scheme named `s` ("explicit", "implicit", "conformal"), or nothing.
-inline std::optional<Smoothing_scheme> parse_smoothing_scheme(const std::string& s)
-{
-  if(s == "explicit") return Smoothing_scheme::explicit_euler;
-  if(s == "implicit") return Smoothing_scheme::implicit_euler;
-  if(s == "conformal") return Smoothing_scheme::conformal;
-  return std::nullopt;
-}
-
-/// @brief returns the time-step unit named as on the command line ("absolute", "edge2" for
-/// mean edge lengths squared, "bound" for fractions of the stability bound), or nothing.
-inline std::optional<Time_step_unit> parse_time_step_unit(const std::string& s)
-{
-  if(s == "absolute") return Time_step_unit::absolute;
-  if(s == "edge2") return Time_step_unit::mean_edge_length_squared;
-  if(s == "bound") return Time_step_unit::stability_bound;
-  return std::nullopt;
-}
-
-/// What a smoothing run did. Times are wall-clock seconds spent in each phase.
-struct Smoothing_report
-{
-  int iterations = 0;
-  std::size_t free_vertices = 0;
-  /// For the explicit scheme: 2 / mu_max, mu_max the largest eigenvalue of -L on the free
-  /// vertices of the input mesh; the scheme is stable for lambda below it (NaN otherwise).
-  /// When lambda is below the (cheap) Gershgorin bound the Lanczos estimate is skipped
-  /// (stability is proven) unless requested: then this holds the Gershgorin bound and
-  /// `stability_bound_exact` is false.
-  double stability_bound = std::numeric_limits<double>::quiet_NaN();
-  bool stability_bound_exact = false;
-  bool above_stability_bound = false;
-  /// "eigen-ldlt" or "cholmod-supernodal" (implicit schemes).
-  std::string solver;
-  double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
-  int factorizations = 0;
-  int preconditioned_solves = 0;  ///< steps solved by CG with a previous factor
-  int cg_iterations = 0;          ///< total CG iterations (all three coordinates)
-};
-
 namespace internal {
 
 using Clock = std::chrono::steady_clock;
@@ -473,12 +413,13 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
   if(s.restore_volume && (nf != n || t.num_boundary_edges != 0))
     throw std::invalid_argument("volume restoration needs a closed mesh without constrained vertices "
                                 "(it rescales the whole mesh, which would move fixed vertices)");
-  if(s.restore_area && nf != n)
-    throw std::invalid_argument(std::string("area restoration rescales the whole mesh, so no vertex may be fixed (") +
-                                (t.num_boundary_edges != 0 && s.fix_boundary
-                                   ? "the boundary is fixed: free it with fix_boundary(false), --free-boundary"
-                                   : "there are constrained vertices") +
-                                ")");
+  if(s.restore_area && nf != n) {
+    if(t.num_boundary_edges != 0 && s.fix_boundary)
+      throw Parameter_error("fix_boundary", "area restoration rescales the whole mesh, so no vertex may be fixed (the "
+                                            "boundary is fixed: free it)", "false");
+    throw std::invalid_argument("area restoration rescales the whole mesh, so no vertex may be fixed (there are "
+                                "constrained vertices)");
+  }
   const Shape_restoration restoration(s.restore_volume ? Shape_restoration::Measure::volume
                                       : s.restore_area ? Shape_restoration::Measure::area
                                                        : Shape_restoration::Measure::none,

@@ -25,6 +25,7 @@
 #define LAPMESH_INTERNAL_SPECTRAL_SOLVER_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/types.h>
 #include <lapmesh/internal/block_lanczos.h>
 
 #include <Eigen/Core>
@@ -44,68 +45,6 @@
 #include <string>
 
 namespace lapmesh {
-
-/// The sparse Cholesky factorisation used by the spectral solver.
-enum class Sparse_cholesky {
-  simplicial,  ///< Eigen's SimplicialLLT (AMD ordering); always available
-  cholmod      ///< SuiteSparse CHOLMOD, supernodal LL^T (needs LAPMESH_HAS_CHOLMOD and linking
-               ///< cholmod); the default when available: with an optimised BLAS (OpenBLAS) its
-               ///< block solves are about 3x faster per vector than single ones
-};
-
-/// The Krylov eigen-solver run on the shift-invert operator.
-enum class Krylov_method {
-  block_lanczos,  ///< lapmesh's thick-restart block Lanczos (default)
-  spectra         ///< Spectra's SymEigsShiftSolver (implicitly restarted Lanczos)
-};
-
-/// The default factorisation: CHOLMOD when compiled in.
-constexpr Sparse_cholesky default_sparse_cholesky =
-#ifdef LAPMESH_HAS_CHOLMOD
-  Sparse_cholesky::cholmod;
-#else
-  Sparse_cholesky::simplicial;
-#endif
-
-/// What the spectral solver is doing, for progress reports.
-struct Spectral_progress
-{
-  const char* stage;       ///< "factorising", "lanczos", "checking completeness"
-  long long operations;    ///< shift-invert solves so far (in the current attempt)
-  int attempt;             ///< 1 for the first run; more after a completeness retry
-  double elapsed_seconds;  ///< since the solve started
-};
-
-/// Options of the spectral solver (filled from named parameters by Spectral_basis).
-struct Spectral_options
-{
-  double tolerance = 1e-10;        ///< relative residual: ||A y - theta y|| <= tolerance |theta|
-  int max_restarts = 1000;         ///< Lanczos restarts per attempt
-  int extra = -1;                  ///< extra pairs for the completeness check; -1: max(6, k/10)
-  double shift_factor = 1e-2;      ///< sigma = -shift_factor / sum(M)
-  bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
-  Sparse_cholesky cholesky = default_sparse_cholesky;
-  Krylov_method method = Krylov_method::block_lanczos;
-  int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 60 pairs, else 8
-  int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
-  int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
-                                   ///< by the solver past wider clusters (see banded_eigenpairs,
-                                   ///< Spectra inside); 0: one run; -1: 40 when k >= 200
-  double ncv_factor = 2.0;         ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
-                                   ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos)
-  std::function<void(const Spectral_progress&)> progress;  ///< optional
-};
-
-/// The computed eigenpairs: values ascending, vectors M-orthonormal (one per column).
-struct Spectral_pairs
-{
-  Eigen::VectorXd values;
-  Eigen::MatrixXd vectors;
-  double shift = 0;           ///< sigma used by the shift-invert solver (0 for the dense path)
-  long long operations = 0;   ///< shift-invert solves, all attempts
-  int attempts = 0;
-  bool dense = false;
-};
 
 namespace internal {
 

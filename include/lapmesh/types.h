@@ -1,0 +1,426 @@
+// lapmesh — the vocabulary of the public API: every enumeration, each with one name table,
+// and the option and report structures of the solvers.
+//
+// The name tables are the only place where a kind is spelled: the library's to_string() and
+// parse functions, the command line's choices and --help, the viewer's dropdowns (served by
+// GET /api/info) and the error messages all read them. A name is the command line's spelling.
+//
+//   lapmesh::names<lapmesh::Laplacian>()            // {"uniform", "cotangent"}
+//   lapmesh::parse<lapmesh::Laplacian>("uniform")   // std::optional<Laplacian>
+//   lapmesh::to_string(lapmesh::Laplacian::uniform) // "uniform"
+//   lapmesh::name_list<lapmesh::Laplacian>()        // "uniform, cotangent"
+//
+// The result and settings structures of the operations are declared here too, so that a front
+// end (or a binding) can hold them without the algorithms' headers.
+#ifndef LAPMESH_TYPES_H
+#define LAPMESH_TYPES_H
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstddef>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace lapmesh {
+
+/// One entry of an enumeration's name table.
+template <typename Enum>
+struct Named
+{
+  Enum value;               ///< the enumerator
+  const char* name;         ///< as the command line, the viewer and the bindings spell it
+  const char* description;  ///< one line for --help and the viewer
+};
+
+/// The name table of `Enum`: specialised for every public enumeration below. `table` lists the
+/// enumerators in the order the documentation and the front ends show them.
+template <typename Enum>
+struct Enum_names
+{};
+
+// ---- operators ------------------------------------------------------------------------
+
+/// n x 3 per-vertex vectors (positions, normals, Laplacians), row i = vertex i.
+using Vertex_vectors = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// The discretisation of the Laplacian (doc/conventions.md).
+enum class Laplacian {
+  uniform,   ///< graph Laplacian: stiffness W = A - D, mass D = diag(degree)
+  cotangent  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
+};
+template <>
+struct Enum_names<Laplacian>
+{
+  static constexpr std::array<Named<Laplacian>, 2> table{{
+    {Laplacian::uniform, "uniform", "graph Laplacian (adjacency minus degrees)"},
+    {Laplacian::cotangent, "cotangent", "Laplace-Beltrami (cotangent weights, vertex areas)"},
+  }};
+};
+
+/// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (doc/conventions.md).
+enum class Vertex_area {
+  barycentric,  ///< one third of the incident face areas (default)
+  voronoi,      ///< circumcentric cells; can be zero or negative on obtuse meshes
+  mixed         ///< Meyer et al. 2003 mixed cells; positive, sums to the surface area
+};
+template <>
+struct Enum_names<Vertex_area>
+{
+  static constexpr std::array<Named<Vertex_area>, 3> table{{
+    {Vertex_area::barycentric, "barycentric", "one third of the incident face areas"},
+    {Vertex_area::voronoi, "voronoi", "circumcentric cells (can be <= 0 on obtuse meshes)"},
+    {Vertex_area::mixed, "mixed", "Voronoi cells clipped at obtuse triangles (Meyer et al.)"},
+  }};
+};
+
+// ---- smoothing ------------------------------------------------------------------------
+
+/// The time discretisation of the Laplacian flow.
+enum class Smoothing_scheme {
+  explicit_euler,  ///< P <- P + lambda L P (forward Euler); stable only below the bound
+  implicit_euler,  ///< (M - lambda S) P' = M P (backward Euler); unconditionally stable
+  conformal        ///< conformalized mean curvature flow (Kazhdan et al. 2012): S of the input, M updated
+};
+template <>
+struct Enum_names<Smoothing_scheme>
+{
+  static constexpr std::array<Named<Smoothing_scheme>, 3> table{{
+    {Smoothing_scheme::explicit_euler, "explicit", "forward Euler, stable below the stability bound"},
+    {Smoothing_scheme::implicit_euler, "implicit", "backward Euler, stable at any time step"},
+    {Smoothing_scheme::conformal, "conformal", "conformalized mean curvature flow"},
+  }};
+};
+
+/// The unit in which a time step is given (smoothing, the denoising study, the viewer).
+enum class Time_step_unit {
+  absolute,                  ///< lambda itself
+  mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
+  stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the mesh
+};
+template <>
+struct Enum_names<Time_step_unit>
+{
+  static constexpr std::array<Named<Time_step_unit>, 3> table{{
+    {Time_step_unit::absolute, "absolute", "lambda itself"},
+    {Time_step_unit::mean_edge_length_squared, "edge2", "times the mean edge length squared (cotangent)"},
+    {Time_step_unit::stability_bound, "bound", "times the explicit stability bound"},
+  }};
+};
+
+/// What a smoothing run did. Times are wall-clock seconds spent in each phase.
+struct Smoothing_report
+{
+  int iterations = 0;
+  std::size_t free_vertices = 0;
+  /// For the explicit scheme: 2 / mu_max, mu_max the largest eigenvalue of -L on the free
+  /// vertices of the input mesh; the scheme is stable for lambda below it (NaN otherwise).
+  /// When lambda is below the (cheap) Gershgorin bound the Lanczos estimate is skipped
+  /// (stability is proven) unless requested: then this holds the Gershgorin bound and
+  /// `stability_bound_exact` is false.
+  double stability_bound = std::numeric_limits<double>::quiet_NaN();
+  bool stability_bound_exact = false;
+  bool above_stability_bound = false;
+  /// "eigen-ldlt", "cholmod-supernodal" or "sparse_linear_solver" (implicit schemes).
+  std::string solver;
+  double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
+  int factorizations = 0;
+  int preconditioned_solves = 0;  ///< steps solved by CG with a previous factor
+  int cg_iterations = 0;          ///< total CG iterations (all three coordinates)
+};
+
+// ---- noise ----------------------------------------------------------------------------
+
+/// The direction of the displacements: a Gaussian 3-vector, or a Gaussian scalar times the vertex normal.
+enum class Noise_direction { isotropic, normal };
+template <>
+struct Enum_names<Noise_direction>
+{
+  static constexpr std::array<Named<Noise_direction>, 2> table{{
+    {Noise_direction::isotropic, "isotropic", "a Gaussian 3-vector per vertex"},
+    {Noise_direction::normal, "normal", "a Gaussian scalar times the unit vertex normal"},
+  }};
+};
+
+/// The length that the noise level multiplies to give sigma.
+enum class Noise_scale { mean_edge_length, bounding_box_diagonal };
+template <>
+struct Enum_names<Noise_scale>
+{
+  static constexpr std::array<Named<Noise_scale>, 2> table{{
+    {Noise_scale::mean_edge_length, "mean-edge", "sigma = level x mean edge length"},
+    {Noise_scale::bounding_box_diagonal, "bbox", "sigma = level x bounding-box diagonal"},
+  }};
+};
+
+// ---- curvature ------------------------------------------------------------------------
+
+/// Per-vertex curvature quantities, entry i = vertex i of the vertex numbering.
+struct Vertex_curvatures
+{
+  Eigen::VectorXd mean;          ///< H, signed (outward normals: sphere has +1/r)
+  Eigen::VectorXd gaussian;      ///< K, angle deficit over the vertex area
+  Eigen::VectorXd k1;            ///< larger principal curvature, k1 = H + sqrt(max(H^2 - K, 0))
+  Eigen::VectorXd k2;            ///< smaller principal curvature, k2 = H - sqrt(max(H^2 - K, 0)) <= k1
+  Eigen::VectorXd area;          ///< A_i of the chosen kind (the denominator of K)
+  Vertex_vectors normal;         ///< unit area-weighted vertex normals
+  Vertex_vectors laplacian;      ///< (L x)_i, the Laplacian of the positions (= -2 H n on smooth parts)
+};
+
+
+// ---- denoising study ------------------------------------------------------------------
+
+/// How far a mesh is from a reference with the same connectivity. Lengths are relative to the
+/// bounding-box diagonal of the reference.
+struct Mesh_deviation
+{
+  double rms_distance = 0;        ///< RMS of the vertex-to-vertex distances / diagonal
+  double hausdorff_distance = 0;  ///< symmetric approximate Hausdorff distance / diagonal
+  double normal_angle_error = 0;  ///< mean angle between area-weighted vertex normals, degrees
+  double volume_change = std::numeric_limits<double>::quiet_NaN();  ///< (V - V_ref)/|V_ref|; NaN if open
+};
+
+
+/// How a run of the denoising study ended.
+enum class Run_status {
+  ok,        ///< finite and within one bounding-box diagonal of the clean mesh
+  diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
+  failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
+};
+template <>
+struct Enum_names<Run_status>
+{
+  static constexpr std::array<Named<Run_status>, 3> table{{
+    {Run_status::ok, "ok", "finite and within one bounding-box diagonal"},
+    {Run_status::diverged, "diverged", "the RMS distance exceeded one diagonal or is not finite"},
+    {Run_status::failed, "failed", "the smoothing stopped with an error"},
+  }};
+};
+
+/// Where a denoising study stands, passed to `Denoising_study_settings::progress`.
+struct Denoising_progress
+{
+  std::size_t runs_done = 0;   ///< runs finished
+  std::size_t total_runs = 0;  ///< levels x schemes x Laplacians x time steps
+  double noise_level = 0;      ///< of the current (or just finished) run
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< of the current run
+  Laplacian laplacian = Laplacian::cotangent;                  ///< of the current run
+  double time_step = 0;  ///< of the current run, in the settings' unit
+  int iteration = 0;     ///< steps measured in the current run
+  int iterations = 0;    ///< steps per run
+};
+
+/// What the denoising study runs. Every combination of level, scheme, Laplacian and time step
+/// is one run of `iterations` steps on the same noisy mesh (per level).
+struct Denoising_study_settings
+{
+  std::vector<double> noise_levels{0.02, 0.05, 0.1};  ///< noise levels (sigma = level x noise_scale)
+  std::vector<Smoothing_scheme> schemes{Smoothing_scheme::explicit_euler,
+                                        Smoothing_scheme::implicit_euler};  ///< schemes compared
+  std::vector<Laplacian> laplacians{Laplacian::uniform, Laplacian::cotangent};  ///< Laplacians compared
+  std::vector<double> time_steps{0.03, 0.1, 0.3, 1.0, 3.0};  ///< time steps, in `unit`
+  Time_step_unit unit = Time_step_unit::mean_edge_length_squared;  ///< unit of `time_steps`
+  int iterations = 20;  ///< smoothing steps per run (one record after each)
+  std::uint64_t seed = 1;  ///< the same seed for every level: the noise differs only in scale
+  Noise_direction noise_direction = Noise_direction::isotropic;  ///< isotropic or along the normals
+  Noise_scale noise_scale = Noise_scale::mean_edge_length;        ///< what the level multiplies
+  Vertex_area area = Vertex_area::barycentric;                    ///< vertex area of the operators
+  bool restore_volume = false;  ///< closed meshes only
+  bool fixed_operator = false;  ///< keep the noisy mesh's operator for all iterations
+  double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh
+  /// Called after each measured iteration and after each run (then `runs_done` has grown).
+  std::function<void(const Denoising_progress&)> progress;
+};
+
+/// One measurement: the state after `iteration` steps (0: the noisy mesh).
+struct Denoising_record
+{
+  double noise_level = 0;  ///< the noise level of this run
+  double sigma = 0;  ///< the noise's standard deviation (absolute)
+  Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;  ///< the scheme of this run
+  Laplacian laplacian = Laplacian::cotangent;                  ///< the Laplacian of this run
+  double time_step = 0;        ///< in the settings' unit
+  double lambda = 0;           ///< absolute
+  double stability_bound = 0;  ///< 2 / mu_max of the noisy mesh for this Laplacian (absolute)
+  int iteration = 0;                   ///< steps done (0: the noisy mesh)
+  Mesh_deviation deviation;            ///< the metrics against the clean mesh
+  Run_status status = Run_status::ok;  ///< how the run stands after this step
+  std::string message;  ///< the error, for failed runs
+};
+
+/// The records of a denoising study, and the best run per noise level and scheme.
+struct Denoising_study
+{
+  std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration
+
+  /// The record with the smallest RMS distance among the `ok` records after at least one
+  /// step for this level and scheme (all Laplacians and time steps), if any.
+  std::optional<Denoising_record> best(double level, Smoothing_scheme scheme) const
+  {
+    std::optional<Denoising_record> out;
+    for(const auto& r : records)
+      if(r.noise_level == level && r.scheme == scheme && r.iteration > 0 && r.status == Run_status::ok &&
+         std::isfinite(r.deviation.rms_distance) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
+        out = r;
+    return out;
+  }
+};
+
+// ---- colour maps ----------------------------------------------------------------------
+
+/// A colour map for per-vertex scalars (colormap.h).
+enum class Colormap { jet, viridis, coolwarm, gray };
+template <>
+struct Enum_names<Colormap>
+{
+  static constexpr std::array<Named<Colormap>, 4> table{{
+    {Colormap::jet, "jet", "rainbow, blue to red"},
+    {Colormap::viridis, "viridis", "perceptually uniform, dark blue to yellow"},
+    {Colormap::coolwarm, "coolwarm", "diverging, for signed values"},
+    {Colormap::gray, "gray", "black to white"},
+  }};
+};
+
+// ---- spectral solver ------------------------------------------------------------------
+
+/// The sparse Cholesky factorisation used by the spectral solver.
+enum class Sparse_cholesky {
+  simplicial,  ///< Eigen's SimplicialLLT (AMD ordering); always available
+  cholmod      ///< SuiteSparse CHOLMOD, supernodal LL^T (needs LAPMESH_HAS_CHOLMOD and linking
+               ///< cholmod); the default when available: with an optimised BLAS its block solves
+               ///< cost less per vector than single ones
+};
+template <>
+struct Enum_names<Sparse_cholesky>
+{
+  static constexpr std::array<Named<Sparse_cholesky>, 2> table{{
+    {Sparse_cholesky::simplicial, "simplicial", "Eigen's SimplicialLLT"},
+    {Sparse_cholesky::cholmod, "cholmod", "CHOLMOD's supernodal LL^T"},
+  }};
+};
+
+/// The Krylov eigen-solver run on the shift-invert operator.
+enum class Krylov_method {
+  block_lanczos,  ///< lapmesh's thick-restart block Lanczos (default)
+  spectra         ///< Spectra's SymEigsShiftSolver (implicitly restarted Lanczos)
+};
+template <>
+struct Enum_names<Krylov_method>
+{
+  static constexpr std::array<Named<Krylov_method>, 2> table{{
+    {Krylov_method::block_lanczos, "block-lanczos", "lapmesh's thick-restart block Lanczos"},
+    {Krylov_method::spectra, "spectra", "Spectra's implicitly restarted Lanczos"},
+  }};
+};
+
+/// The default factorisation: CHOLMOD when compiled in.
+constexpr Sparse_cholesky default_sparse_cholesky =
+#ifdef LAPMESH_HAS_CHOLMOD
+  Sparse_cholesky::cholmod;
+#else
+  Sparse_cholesky::simplicial;
+#endif
+
+/// What the spectral solver is doing, for progress reports.
+struct Spectral_progress
+{
+  const char* stage;       ///< "factorising", "lanczos", "checking completeness"
+  long long operations;    ///< shift-invert solves so far (in the current attempt)
+  int attempt;             ///< 1 for the first run; more after a completeness retry
+  double elapsed_seconds;  ///< since the solve started
+};
+
+/// Options of the spectral solver (filled from named parameters by Spectral_basis).
+struct Spectral_options
+{
+  double tolerance = 1e-10;        ///< relative residual: ||A y - theta y|| <= tolerance |theta|
+  int max_restarts = 1000;         ///< Lanczos restarts per attempt
+  int extra = -1;                  ///< extra pairs for the completeness check; -1: max(6, k/10)
+  double shift_factor = 1e-2;      ///< sigma = -shift_factor / sum(M)
+  bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
+  Sparse_cholesky cholesky = default_sparse_cholesky;
+  Krylov_method method = Krylov_method::block_lanczos;
+  int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 60 pairs, else 8
+  int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
+  int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
+                                   ///< by the solver past wider clusters (Spectra inside);
+                                   ///< 0: one run; -1: 40 when k >= 200
+  double ncv_factor = 2.0;         ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
+                                   ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos)
+  std::function<void(const Spectral_progress&)> progress;  ///< optional
+};
+
+/// The computed eigenpairs: values ascending, vectors M-orthonormal (one per column).
+struct Spectral_pairs
+{
+  Eigen::VectorXd values;
+  Eigen::MatrixXd vectors;
+  double shift = 0;           ///< sigma used by the shift-invert solver (0 for the dense path)
+  long long operations = 0;   ///< shift-invert solves, all attempts
+  int attempts = 0;
+  bool dense = false;
+};
+
+// ---- names ----------------------------------------------------------------------------
+
+/// @brief returns the name table of `Enum` (value, name, description), in display order.
+template <typename Enum>
+constexpr const auto& name_table()
+{
+  return Enum_names<Enum>::table;
+}
+
+/// @brief returns the names of `Enum`'s enumerators, in display order.
+template <typename Enum>
+std::vector<std::string> names()
+{
+  std::vector<std::string> out;
+  for(const auto& entry : name_table<Enum>()) out.emplace_back(entry.name);
+  return out;
+}
+
+/// @brief returns the names of `Enum` joined by `separator` (for help texts and messages).
+template <typename Enum>
+std::string name_list(const std::string& separator = ", ")
+{
+  std::string out;
+  for(const auto& entry : name_table<Enum>()) out += (out.empty() ? "" : separator) + std::string(entry.name);
+  return out;
+}
+
+/// @brief returns the enumerator named `name`, or nothing for an unknown name.
+template <typename Enum>
+std::optional<Enum> parse(std::string_view name)
+{
+  for(const auto& entry : name_table<Enum>())
+    if(name == entry.name) return entry.value;
+  return std::nullopt;
+}
+
+/// @brief returns the name of `value`, as the command line spells it.
+template <typename Enum, typename = decltype(Enum_names<Enum>::table)>
+const char* to_string(Enum value)
+{
+  for(const auto& entry : name_table<Enum>())
+    if(entry.value == value) return entry.name;
+  return "unknown";
+}
+
+/// @brief returns the Laplacian named `s`, or nothing for an unknown name.
+inline std::optional<Laplacian> parse_laplacian(const std::string& s) { return parse<Laplacian>(s); }
+/// @brief returns the vertex area named `s`, or nothing for an unknown name.
+inline std::optional<Vertex_area> parse_vertex_area(const std::string& s) { return parse<Vertex_area>(s); }
+/// @brief returns the scheme named `s` ("explicit", "implicit", "conformal"), or nothing.
+inline std::optional<Smoothing_scheme> parse_smoothing_scheme(const std::string& s) { return parse<Smoothing_scheme>(s); }
+/// @brief returns the time-step unit named `s` ("absolute", "edge2", "bound"), or nothing.
+inline std::optional<Time_step_unit> parse_time_step_unit(const std::string& s) { return parse<Time_step_unit>(s); }
+
+} // namespace lapmesh
+
+#endif
