@@ -13,7 +13,10 @@ namespace {
 struct Curvature_options
 {
   std::string input, output;
-  std::string laplacian = "cotangent", area = "barycentric", quantity = "mean", colormap = "jet", range = "auto";
+  // Defaults are the operations layer's, spelled by the name tables.
+  std::string laplacian = lapmesh::to_string(lapmesh_ops::Curvature_settings{}.laplacian);
+  std::string area = lapmesh::to_string(lapmesh_ops::Curvature_settings{}.area);
+  std::string quantity = "mean", colormap = lapmesh::to_string(lapmesh::Colormap::jet), range = "auto";
   double clip_percent = 0;
   bool quiet = false;
 };
@@ -62,7 +65,7 @@ void run(const Curvature_options& o)
         scalars = {{"mean", values_of(c.mean)}, {"gaussian", values_of(c.gaussian)}, {"k1", values_of(c.k1)},
                    {"k2", values_of(c.k2)}};
       lapmesh_ops::write_mesh(o.output, mesh, scalars,
-                              lapmesh::colorize(values, *lapmesh::parse_colormap(o.colormap), range));
+                              lapmesh::colorize(values, enum_from<lapmesh::Colormap>(o.colormap), range));
     }
   });
   if(!o.quiet)
@@ -90,12 +93,9 @@ void register_curvature(CLI::App& app)
   cmd->add_option("--quantity", o->quantity, "quantity to colour: mean, gaussian, k1 or k2")
     ->check(CLI::IsMember({"mean", "gaussian", "k1", "k2"}))
     ->capture_default_str();
-  std::vector<std::string> colormaps;
-  for(const auto& n : lapmesh::colormap_names()) colormaps.push_back(n.name);
-  cmd->add_option("--colormap", o->colormap,
-                  "colour map: " + lapmesh::colormap_name_list() + " (coolwarm is diverging, for signed values)")
-    ->check(CLI::IsMember(colormaps))
-    ->capture_default_str();
+  add_enum_option<lapmesh::Colormap>(*cmd, "--colormap", o->colormap,
+                                     "colour map: " + lapmesh::name_list<lapmesh::Colormap>() +
+                                       " (coolwarm is diverging, for signed values)");
   cmd->add_option("--range", o->range,
                   "colour range: auto ([min, max], symmetric about 0 when the values have both signs) or MIN:MAX")
     ->capture_default_str();

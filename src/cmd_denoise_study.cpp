@@ -27,7 +27,10 @@ struct Study_options
 {
   std::string input, output, plot;
   std::string levels = "0.02,0.05,0.1", schemes = "explicit,implicit", laplacians = "uniform,cotangent";
-  std::string lambdas = "0.03,0.1,0.3,1,3", lambda_unit = "edge2", area = "barycentric", direction = "isotropic";
+  std::string lambdas = "0.03,0.1,0.3,1,3";
+  std::string lambda_unit = lapmesh::to_string(lapmesh::Denoising_study_settings{}.unit);
+  std::string area = lapmesh::to_string(lapmesh::Denoising_study_settings{}.area);
+  std::string direction = lapmesh::to_string(lapmesh::Denoising_study_settings{}.noise_direction);
   long long iterations = 20;
   std::uint64_t seed = 1;
   double hausdorff_spacing = 1.0;

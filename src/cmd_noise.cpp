@@ -9,7 +9,9 @@ namespace {
 
 struct Noise_options
 {
-  std::string input, output, scale = "mean-edge", direction = "isotropic";
+  std::string input, output;
+  std::string scale = lapmesh::to_string(lapmesh_ops::Noise_settings{}.scale);
+  std::string direction = lapmesh::to_string(lapmesh_ops::Noise_settings{}.direction);
   double level = 0;
   std::uint64_t seed = 0;
   bool quiet = false;

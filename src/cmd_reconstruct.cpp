@@ -13,7 +13,9 @@ namespace {
 
 struct Reconstruct_options
 {
-  std::string input, output, laplacian = "cotangent", area = "barycentric", k, save_basis, load_basis, basis_size;
+  std::string input, output, k, save_basis, load_basis, basis_size;
+  std::string laplacian = lapmesh::to_string(lapmesh_ops::Reconstruct_settings{}.laplacian);
+  std::string area = lapmesh::to_string(lapmesh_ops::Reconstruct_settings{}.area);
   bool quiet = false;
 };
 

@@ -12,7 +12,10 @@ namespace {
 struct Smooth_options
 {
   std::string input, output;
-  std::string scheme, lambda, lambda_unit = "absolute", laplacian = "cotangent", area = "barycentric";
+  std::string scheme, lambda;
+  std::string lambda_unit = lapmesh::to_string(lapmesh_ops::Time_step{}.unit);
+  std::string laplacian = lapmesh::to_string(lapmesh_ops::Smooth_settings{}.laplacian);
+  std::string area = lapmesh::to_string(lapmesh_ops::Smooth_settings{}.area);
   long long iterations = 0;
   bool fixed_operator = false, restore_volume = false, restore_area = false, free_boundary = false,
        reuse_factorization = false, quiet = false;

@@ -13,7 +13,9 @@ namespace {
 
 struct Spectrum_options
 {
-  std::string input, output, laplacian = "cotangent", area = "barycentric", k;
+  std::string input, output, k;
+  std::string laplacian = lapmesh::to_string(lapmesh_ops::Spectral_settings{}.laplacian);
+  std::string area = lapmesh::to_string(lapmesh_ops::Spectral_settings{}.area);
   bool quiet = false;
 };
 

@@ -367,6 +367,26 @@ struct Spectral_pairs
   bool dense = false;
 };
 
+// ---- reading meshes -------------------------------------------------------------------
+
+namespace io {
+
+/// A mesh as read from a file, before triangulation and validation.
+struct Polygon_soup
+{
+  std::vector<std::array<double, 3>> points;       ///< vertex positions, in file order
+  std::vector<std::vector<std::size_t>> polygons;  ///< faces as indices into `points`
+};
+
+/// What soup_to_triangles() did besides copying.
+struct Soup_report
+{
+  std::size_t triangulated_polygons = 0;  ///< input faces with more than 3 vertices
+  std::size_t flipped_faces = 0;          ///< faces re-oriented for consistency
+};
+
+} // namespace io
+
 // ---- names ----------------------------------------------------------------------------
 
 /// @brief returns the name table of `Enum` (value, name, description), in display order.

@@ -68,6 +68,12 @@ struct Loaded_mesh
 /// Reads and validates a mesh (OFF, OBJ, PLY, STL). Throws lapmesh::Io_error, Mesh_error.
 Loaded_mesh load_mesh(const std::string& path);
 
+/// Validates a polygon soup as load_mesh() validates a file (finite coordinates, index
+/// ranges, every vertex in a face, no zero-area face, manifold), triangulates polygons and
+/// orients the faces consistently: for meshes that come as arrays (the Python module).
+/// Throws lapmesh::Mesh_error.
+Loaded_mesh mesh_from_soup(const lapmesh::io::Polygon_soup& soup);
+
 /// The mesh formats written by write_mesh(), by extension (lower case, no dot).
 const std::vector<std::string>& mesh_output_formats();
 

@@ -6,14 +6,30 @@
 
 namespace lapmesh_ops {
 
-Loaded_mesh load_mesh(const std::string& path)
+namespace {
+void add_notes(const lapmesh::io::Soup_report& report, Loaded_mesh& loaded)
 {
-  Loaded_mesh loaded;
-  const lapmesh::io::Soup_report report = lapmesh::io::read_triangle_mesh(path, loaded.mesh);
   if(report.triangulated_polygons > 0)
     loaded.notes.push_back("triangulated " + std::to_string(report.triangulated_polygons) + " polygon(s)");
   if(report.flipped_faces > 0)
     loaded.notes.push_back("re-oriented " + std::to_string(report.flipped_faces) + " face(s) consistently");
+}
+} // namespace
+
+Loaded_mesh load_mesh(const std::string& path)
+{
+  Loaded_mesh loaded;
+  add_notes(lapmesh::io::read_triangle_mesh(path, loaded.mesh), loaded);
+  return loaded;
+}
+
+Loaded_mesh mesh_from_soup(const lapmesh::io::Polygon_soup& soup)
+{
+  Loaded_mesh loaded;
+  lapmesh::io::Soup_report report;
+  const auto triangles = lapmesh::io::soup_to_triangles(soup, &report);
+  lapmesh::io::triangles_to_mesh(soup, triangles, loaded.mesh);
+  add_notes(report, loaded);
   return loaded;
 }
 

@@ -3,12 +3,11 @@
 //
 // Why a block method. In shift-invert mode every Krylov step is a pair of sparse triangular
 // solves, which are memory bound: a supernodal factor read once serves b right-hand sides in a
-// fraction of the time of b single solves (CHOLMOD with OpenBLAS, 280k vertices: 14.7 ms per
-// vector for b = 8 against 41 ms for b = 1). The re-orthogonalisation against the basis also
-// becomes matrix-matrix products, where single-vector Lanczos (Spectra) spends about half of
-// its time in repeated matrix-vector products over the whole basis. The price is more
-// operator applications than single-vector Lanczos (about 1.8x for 30 pairs): the block
-// method wins as soon as a block solve costs less than half of b single ones.
+// fraction of the time of b single solves (doc/benchmarks.md has the figures). The
+// re-orthogonalisation against the basis also becomes matrix-matrix products, where
+// single-vector Lanczos (Spectra) spends much of its time in repeated matrix-vector products
+// over the whole basis. The price is more operator applications than single-vector Lanczos:
+// the block method wins as soon as a block solve costs less than half of b single ones.
 //
 // Method. Block Lanczos with full re-orthogonalisation: the new block is orthogonalised
 // against the last two blocks (the three-term recurrence), then once against the whole basis
@@ -51,9 +50,9 @@ extern "C" void dgemm_(const char* transa, const char* transb, const int* m, con
 /// C = alpha op(A) B + beta C with op(A) = A or A^T, on column-major blocks (any outer stride).
 /// With LAPMESH_HAS_BLAS the BLAS library's dgemm does it: these products of a tall basis with a
 /// thin block are memory bound, and an optimised BLAS (OpenBLAS, run-time dispatched to the
-/// CPU's vector width) streams the basis 1.5-2.4x faster than Eigen compiled for generic x86-64
-/// (measured at 280k rows). Without it, Eigen in row panels that stay in cache (Eigen's product
-/// would otherwise copy the whole tall operand into its packed format first).
+/// CPU's vector width) streams the basis faster than Eigen compiled for generic x86-64. Without
+/// it, Eigen in row panels that stay in cache (Eigen's product would otherwise copy the whole
+/// tall operand into its packed format first).
 inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eigen::MatrixXd>& A,
                       const Eigen::Ref<const Eigen::MatrixXd>& B, double beta, Eigen::Ref<Eigen::MatrixXd> C)
 {

@@ -12,6 +12,7 @@
 #define LAPMESH_INTERNAL_IO_PARSERS_H
 
 #include <lapmesh/internal/io_input.h>
+#include <lapmesh/types.h>
 
 #include <array>
 #include <cctype>
@@ -28,12 +29,6 @@
 namespace lapmesh {
 namespace io {
 
-/// A mesh as read from a file, before triangulation and validation.
-struct Polygon_soup
-{
-  std::vector<std::array<double, 3>> points;       ///< vertex positions, in file order
-  std::vector<std::vector<std::size_t>> polygons;  ///< faces as indices into `points`
-};
 
 namespace internal {
 

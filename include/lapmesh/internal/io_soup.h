@@ -199,12 +199,6 @@ inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& 
 
 } // namespace internal
 
-/// What soup_to_triangles() did besides copying.
-struct Soup_report
-{
-  std::size_t triangulated_polygons = 0;  ///< input faces with more than 3 vertices
-  std::size_t flipped_faces = 0;          ///< faces re-oriented for consistency
-};
 
 /// Validates a soup and turns it into consistently oriented triangles over the same vertices.
 /// Throws Mesh_error naming the vertex or face (input face index) for: a non-finite

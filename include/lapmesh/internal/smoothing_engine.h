@@ -416,7 +416,7 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
   if(s.restore_area && nf != n) {
     if(t.num_boundary_edges != 0 && s.fix_boundary)
       throw Parameter_error("fix_boundary", "area restoration rescales the whole mesh, so no vertex may be fixed (the "
-                                            "boundary is fixed: free it)", "false");
+                                            "boundary is fixed: free it with fix_boundary(false))", "false");
     throw std::invalid_argument("area restoration rescales the whole mesh, so no vertex may be fixed (there are "
                                 "constrained vertices)");
   }
