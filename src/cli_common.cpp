@@ -127,7 +127,7 @@ long long spectral_k_from(const std::string& input, const std::string& text, lon
   return parse_count_option(input, "-k", text, 1, n, ", the number of vertices");
 }
 
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer()
+std::function<void(const lapmesh::Spectral_progress&)> Spectral_progress_line::printer()
 {
   if(!::isatty(2)) return {};
   // The block solver reports after every block step (hundreds per second on small meshes):
@@ -143,7 +143,7 @@ std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer
   };
 }
 
-void clear_progress_line()
+Spectral_progress_line::~Spectral_progress_line()
 {
   if(::isatty(2)) std::fprintf(stderr, "\r%60s\r", "");
 }

@@ -96,12 +96,20 @@ void add_area_option(CLI::App& cmd, std::string& value);
 long long parse_count_option(const std::string& input, const std::string& option, const std::string& text,
                              long long lo, long long hi, const std::string& range_note);
 
-/// Spectral helpers shared by `spectrum` and `reconstruct` (cmd_spectrum.cpp): -k parsed and
-/// checked against n, and the progress line of the eigensolver (on a terminal only).
+/// Spectral helpers shared by `spectrum` and `reconstruct`: -k parsed and checked against n,
+/// and the eigensolver's progress line on a terminal, cleared when the guard goes (success or
+/// failure) so that the result or the error starts on a clean line.
 long long spectral_k_from(const std::string& input, const std::string& text, long long n);
-std::function<void(const lapmesh::Spectral_progress&)> spectral_progress_printer();
-/// Clears the progress line, if one was drawn.
-void clear_progress_line();
+class Spectral_progress_line
+{
+public:
+  Spectral_progress_line() = default;
+  ~Spectral_progress_line();
+  Spectral_progress_line(const Spectral_progress_line&) = delete;
+  Spectral_progress_line& operator=(const Spectral_progress_line&) = delete;
+  /// The callback to pass as the settings' progress (empty when stderr is not a terminal).
+  std::function<void(const lapmesh::Spectral_progress&)> printer();
+};
 
 /// Subcommand registration (one function per cmd_*.cpp file).
 void register_curvature(CLI::App& app);

@@ -28,7 +28,6 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
   s.k = spectral_k_from(o.input, o.k, n);
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
-  s.progress = spectral_progress_printer();
   std::shared_ptr<const lapmesh::Spectral_basis> basis;
   if(!o.load_basis.empty()) {
     basis = or_fail(o.load_basis, [&] {
@@ -44,13 +43,11 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
     s.basis_size = parse_count_option(o.input, "--basis-size", o.basis_size, 0, n, ", the number of vertices");
   }
   lapmesh_ops::Reconstruction r;
-  try {
+  {
+    Spectral_progress_line line;
+    s.progress = line.printer();
     r = or_fail(o.input, [&] { return lapmesh_ops::reconstruct(mesh, s, basis); });
-  } catch(...) {
-    clear_progress_line();
-    throw;
   }
-  clear_progress_line();
   print_warnings(o.input, r.warnings);
   if(!o.save_basis.empty()) or_fail(o.save_basis, [&] { r.basis->save(o.save_basis); });
   lapmesh_ops::set_positions(mesh, r.positions);

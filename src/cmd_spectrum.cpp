@@ -28,15 +28,12 @@ void run(const Spectrum_options& o)
   s.k = spectral_k_from(o.input, o.k, n);
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
-  s.progress = spectral_progress_printer();
   std::shared_ptr<const lapmesh::Spectral_basis> basis;
-  try {
+  {
+    Spectral_progress_line line;
+    s.progress = line.printer();
     basis = or_fail(o.input, [&] { return lapmesh_ops::spectral_basis(mesh, s); });
-  } catch(...) {
-    clear_progress_line();
-    throw;
   }
-  clear_progress_line();
   const Eigen::VectorXd& values = basis->eigenvalues();
   or_fail(o.output, [&] {
     lapmesh_ops::write_text(o.output, [&](std::ostream& os) {
