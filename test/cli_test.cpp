@@ -14,26 +14,7 @@ using namespace lapmesh_test;
 
 namespace {
 
-struct Cli_run
-{
-  int status;
-  std::string out, err;
-};
-
 std::string tmp(const std::string& name) { return lapmesh_test::scratch_dir() + "/cli_" + name; }
-
-std::string slurp(const std::string& path)
-{
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-Cli_run lapmesh_cli(const std::string& args)
-{
-  const std::string out = tmp("stdout.txt"), err = tmp("stderr.txt");
-  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " > " + out + " 2> " + err).c_str());
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, slurp(out), slurp(err)};
-}
 
 std::size_t count_lines(const std::string& s) { return std::size_t(std::count(s.begin(), s.end(), '\n')); }
 
@@ -54,14 +35,14 @@ TEST(Cli, CurvatureCsvMatchesTheLibraryToSeventeenDigits)
     for(const char* area : {"barycentric", "mixed"}) {
       const std::string out = tmp("torus.csv");
       std::remove(out.c_str());
-      const Cli_run r = lapmesh_cli("curvature " + in + " -o " + out + " --laplacian " + lap + " --area " + area + " -q");
+      const Cli_result r = run_lapmesh("curvature " + in + " -o " + out + " --laplacian " + lap + " --area " + area + " -q");
       ASSERT_EQ(r.status, 0) << r.err;
       EXPECT_EQ(r.out, "");  // -q
       Mesh m;
       lapmesh::io::read_triangle_mesh(in, m);
       const auto c = lapmesh::vertex_curvatures(
         m, lapmesh::parameters::laplacian(*lapmesh::parse_laplacian(lap), lapmesh::parameters::vertex_area(*lapmesh::parse_vertex_area(area))));
-      std::istringstream csv(slurp(out));
+      std::istringstream csv(read_file(out));
       std::string line;
       std::getline(csv, line);
       EXPECT_EQ(line, "vertex,mean,gaussian,k1,k2");
@@ -86,16 +67,16 @@ TEST(Cli, CurvatureCsvMatchesTheLibraryToSeventeenDigits)
 TEST(Cli, CurvaturePlyAndCoffOutputs)
 {
   const std::string in = write_mesh_file("sphere.obj", lapmesh::icosphere(2, 2.0));
-  Cli_run r = lapmesh_cli("curvature " + in + " -o " + tmp("sphere.ply") + " --area mixed --quantity gaussian --colormap viridis");
+  Cli_result r = run_lapmesh("curvature " + in + " -o " + tmp("sphere.ply") + " --area mixed --quantity gaussian --colormap viridis");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("162 vertices"), std::string::npos) << r.out;
-  const std::string ply = slurp(tmp("sphere.ply"));
+  const std::string ply = read_file(tmp("sphere.ply"));
   for(const char* prop : {"property double mean", "property double gaussian", "property double k1", "property double k2",
                           "property uchar red", "element vertex 162", "element face 320"})
     EXPECT_NE(ply.find(prop), std::string::npos) << prop;
-  r = lapmesh_cli("curvature " + in + " -o " + tmp("sphere.off") + " --range 0:1 --colormap gray --area mixed");
+  r = run_lapmesh("curvature " + in + " -o " + tmp("sphere.off") + " --range 0:1 --colormap gray --area mixed");
   ASSERT_EQ(r.status, 0) << r.err;
-  const std::string off = slurp(tmp("sphere.off"));
+  const std::string off = read_file(tmp("sphere.off"));
   EXPECT_EQ(off.rfind("COFF\n162 320 0\n", 0), 0u);
   // H = 0.5 on this sphere (mixed area), range [0, 1] in gray: mid-grey (barycentric would
   // give 145 here: the 14% error at the valence-5 vertex 0)
@@ -113,12 +94,12 @@ TEST(Cli, CurvaturePlyAndCoffOutputs)
 
 TEST(Cli, HelpForEverySubcommandAndVersion)
 {
-  EXPECT_EQ(lapmesh_cli("--help").status, 0);
-  const Cli_run r = lapmesh_cli("curvature --help");
+  EXPECT_EQ(run_lapmesh("--help").status, 0);
+  const Cli_result r = run_lapmesh("curvature --help");
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("--laplacian"), std::string::npos);
   EXPECT_NE(r.out.find("not scale-correct"), std::string::npos);
-  EXPECT_NE(lapmesh_cli("--version").out.find("lapmesh"), std::string::npos);
+  EXPECT_NE(run_lapmesh("--version").out.find("lapmesh"), std::string::npos);
 }
 
 TEST(Cli, BadInputsGiveOneLineNamingTheFileAndNoOutput)
@@ -147,38 +128,39 @@ TEST(Cli, BadInputsGiveOneLineNamingTheFileAndNoOutput)
      tmp("nonmanifold.off"), "non-manifold"},
     {file("format.xyz", "1 2 3\n"), tmp("format.xyz"), "unsupported mesh format"},
   };
-  for(const Case& c : cases) {
-    const Cli_run r = lapmesh_cli("curvature " + c.args + " -o " + out);
+  run_test_cases(cases, [](const Case& c) { return c.args; }, [&](const Case& c) {
+    const Cli_result r = run_lapmesh("curvature " + c.args + " -o " + out);
     EXPECT_NE(r.status, 0) << c.args;
     EXPECT_EQ(count_lines(r.err), 1u) << r.err;
     EXPECT_NE(r.err.find(c.file_in_message), std::string::npos) << r.err;
     EXPECT_NE(r.err.find(c.problem), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
-  }
+  });
   // usage errors: unknown option, bad values, bad output format
-  for(const std::string& args : {"curvature " + good + " -o " + out + " --bogus",
-                                 "curvature " + good + " -o " + out + " --laplacian cotan",
-                                 "curvature " + good + " -o " + out + " --range 2:1",
-                                 "curvature " + good + " -o " + tmp("x.stl"),
-                                 "curvature " + good, std::string("frobnicate")}) {
-    const Cli_run r = lapmesh_cli(args);
+  run_test_cases(std::vector<std::string>{"curvature " + good + " -o " + out + " --bogus",
+                                          "curvature " + good + " -o " + out + " --laplacian cotan",
+                                          "curvature " + good + " -o " + out + " --range 2:1",
+                                          "curvature " + good + " -o " + tmp("x.stl"),
+                                          "curvature " + good, std::string("frobnicate")},
+                 [&](const std::string& args) {
+    const Cli_result r = run_lapmesh(args);
     EXPECT_NE(r.status, 0) << args;
     EXPECT_EQ(count_lines(r.err), 1u) << args << ": " << r.err;
     EXPECT_FALSE(std::filesystem::exists(out)) << args;
-  }
+  });
   // a failure never clobbers an existing output file
   std::ofstream(out) << "keep me\n";
-  EXPECT_NE(lapmesh_cli("curvature " + tmp("zero.off") + " -o " + out).status, 0);
-  EXPECT_EQ(slurp(out), "keep me\n");
+  EXPECT_NE(run_lapmesh("curvature " + tmp("zero.off") + " -o " + out).status, 0);
+  EXPECT_EQ(read_file(out), "keep me\n");
   std::remove(out.c_str());
 }
 
 TEST(Cli, RealMeshFromCgalDataSet)
 {
-  const Cli_run r = lapmesh_cli("curvature " + cgal_mesh("cow.off") + " -o " + tmp("cow.csv") + " --area mixed");
+  const Cli_result r = run_lapmesh("curvature " + cgal_mesh("cow.off") + " -o " + tmp("cow.csv") + " --area mixed");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("2904 vertices, 5804 faces"), std::string::npos) << r.out;
-  EXPECT_EQ(count_lines(slurp(tmp("cow.csv"))), 2905u);
+  EXPECT_EQ(count_lines(read_file(tmp("cow.csv"))), 2905u);
 }
 
 // ---- messages ----------------------------------------------------------------------------
@@ -208,18 +190,18 @@ TEST(CliMessages, HugeCountsAreReportedAsGivenWithTheValidRange)
     {"reconstruct " + in + " -o " + mesh_out + " -k 5 --basis-size -1",
      "--basis-size '-1' is out of range (expected 0 <= basis-size <= 42"},
   };
-  for(const Case& c : cases) {
-    const Cli_run r = lapmesh_cli(c.args);
+  run_test_cases(cases, [](const Case& c) { return c.args; }, [&](const Case& c) {
+    const Cli_result r = run_lapmesh(c.args);
     EXPECT_EQ(r.status, 1) << c.args;
     EXPECT_EQ(count_lines(r.err), 1u) << r.err;
     EXPECT_NE(r.err.find(in + ": " + c.expected), std::string::npos) << c.args << "\n" << r.err;
     EXPECT_EQ(r.err.find("-1)"), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(out) || std::filesystem::exists(mesh_out)) << c.args;
-  }
+  });
   // The largest valid values still work.
-  const Cli_run r = lapmesh_cli("spectrum " + in + " -o " + out + " -k 0042 -q");
+  const Cli_result r = run_lapmesh("spectrum " + in + " -o " + out + " -k 0042 -q");
   EXPECT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(count_lines(slurp(out)), 43u);
+  EXPECT_EQ(count_lines(read_file(out)), 43u);
   std::remove(out.c_str());
 }
 
@@ -228,25 +210,25 @@ TEST(CliMessages, ChoiceErrorsListExactlyTheDocumentedNames)
   const std::string in = write_mesh_file("msg_sphere.off", lapmesh::icosphere(1));
   const std::string out = tmp("msg_never.ply");
   // --quantity: four names, none empty.
-  Cli_run r = lapmesh_cli("curvature " + in + " -o " + out + " --quantity bogus");
+  Cli_result r = run_lapmesh("curvature " + in + " -o " + out + " --quantity bogus");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(count_lines(r.err), 1u) << r.err;
   EXPECT_NE(r.err.find("bogus not in {mean,gaussian,k1,k2}"), std::string::npos) << r.err;
   // --colormap: the names of lapmesh::colormap_names(), which doc/cli.md lists too.
   const std::string names = lapmesh::colormap_name_list(",");
   EXPECT_EQ(names, "jet,viridis,coolwarm,gray");
-  r = lapmesh_cli("curvature " + in + " -o " + out + " --colormap bogus");
+  r = run_lapmesh("curvature " + in + " -o " + out + " --colormap bogus");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(count_lines(r.err), 1u) << r.err;
   EXPECT_NE(r.err.find("bogus not in {" + names + "}"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("diverging"), std::string::npos) << r.err;
-  const std::string cli_doc = slurp(std::string(LAPMESH_DATA_DIR) + "/../doc/cli.md");
+  const std::string cli_doc = read_file(std::string(LAPMESH_DATA_DIR) + "/../doc/cli.md");
   EXPECT_NE(cli_doc.find("[--colormap " + lapmesh::colormap_name_list("|") + "]"), std::string::npos);
   EXPECT_EQ(cli_doc.find("diverging|"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(out));
   // Every listed name is accepted.
   for(const auto& n : lapmesh::colormap_names()) {
-    r = lapmesh_cli("curvature " + in + " -o " + out + " -q --colormap " + n.name);
+    r = run_lapmesh("curvature " + in + " -o " + out + " -q --colormap " + n.name);
     EXPECT_EQ(r.status, 0) << n.name << ": " << r.err;
   }
   std::remove(out.c_str());
@@ -258,7 +240,7 @@ TEST(CliMessages, ACollapseDuringSmoothingNamesTheIteration)
   // itself is valid, so the message must say when the face collapsed.
   const std::string in = cgal_mesh("cow.off");
   const std::string out = tmp("msg_never_smoothed.off");
-  const Cli_run r = lapmesh_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 1e-5 --iterations 40");
+  const Cli_result r = run_lapmesh("smooth " + in + " -o " + out + " --scheme implicit --lambda 1e-5 --iterations 40");
   EXPECT_EQ(r.status, 1);
   EXPECT_EQ(count_lines(r.err), 1u) << r.err;
   const std::string prefix = "lapmesh: " + in + ": iteration ";

@@ -148,14 +148,16 @@ TEST(Curvature, GaussBonnetToRoundOff)
 TEST(Curvature, GaussBonnetOnRealMeshes)
 {
   // CGAL's data set: a genus-0 cow, a genus-2 double torus (chi = -2).
-  for(const auto& [name, chi] : {std::pair<std::string, double>{"cow.off", 2}, {"double-torus-example.off", -2}}) {
+  using Case = std::pair<std::string, double>;  // a mesh file and its Euler characteristic
+  run_test_cases(std::vector<Case>{{"cow.off", 2}, {"double-torus-example.off", -2}}, [](const Case& mesh_case) {
+    const auto& [name, chi] = mesh_case;
     Mesh m;
     lapmesh::io::read_triangle_mesh(cgal_mesh(name), m);  // the double torus has quads: triangulated
     const double euler = double(num_vertices(m)) - double(num_edges(m)) + double(num_faces(m));
     ASSERT_EQ(euler, chi) << name;
     const auto c = lapmesh::vertex_curvatures(m, LP::vertex_area(Vertex_area::mixed));
     EXPECT_NEAR(gauss_bonnet_sum(c), 2 * M_PI * chi, 1e-10 * 2 * M_PI) << name;
-  }
+  });
 }
 
 TEST(Curvature, UniformIsNonZeroOnIrregularFlatPatchWhereCotangentVanishes)

@@ -16,7 +16,6 @@
 #include <fstream>
 #include <random>
 #include <sstream>
-#include <sys/wait.h>
 
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
@@ -255,28 +254,7 @@ TEST(Denoising, StudyRejectsBadSettings)
 
 namespace {
 
-struct Cli_result
-{
-  int status;
-  std::string out, err;
-};
-
-std::string slurp(const std::string& path)
-{
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-Cli_result run_study_cli(const std::string& args)
-{
-  const std::string tmp = lapmesh_test::scratch_dir();
-  const std::string cmd = std::string(LAPMESH_CLI) + " denoise-study " + args + " >" + tmp + "/study_stdout.txt 2>" + tmp +
-                          "/study_stderr.txt";
-  const int raw = std::system(cmd.c_str());
-  return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, slurp(tmp + "/study_stdout.txt"), slurp(tmp + "/study_stderr.txt")};
-}
+Cli_result run_study_cli(const std::string& args) { return run_lapmesh("denoise-study " + args); }
 
 } // namespace
 
@@ -294,7 +272,7 @@ TEST(DenoisingCli, BadLevelsLambdasOrIterationsFailCleanly)
     "--levels ''",          "--lambdas 0",           "--lambdas 0.1,-1",    "--lambdas inf",
     "--lambdas x",          "--iterations 0",        "--iterations -3",     "--schemes explicit,bogus",
     "--laplacians cotan"};
-  for(const std::string& args : bad) {
+  run_test_cases(bad, [&](const std::string& args) {
     std::filesystem::remove(out);
     std::filesystem::remove(svg);
     const Cli_result r = run_study_cli(in + " -o " + out + " --plot " + svg + " " + args);
@@ -302,7 +280,7 @@ TEST(DenoisingCli, BadLevelsLambdasOrIterationsFailCleanly)
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << ": " << r.err;
     EXPECT_FALSE(std::filesystem::exists(out)) << args;
     EXPECT_FALSE(std::filesystem::exists(svg)) << args;
-  }
+  });
 }
 
 TEST(DenoisingCli, WritesOneRowPerIterationAndReportsTheBest)
@@ -317,14 +295,14 @@ TEST(DenoisingCli, WritesOneRowPerIterationAndReportsTheBest)
   std::filesystem::remove(svg);
   const Cli_result r = run_study_cli(in + " -o " + out + " --plot " + svg + " --levels 0.02,0.1 --lambdas 0.1,1 --iterations 3");
   ASSERT_EQ(r.status, 0) << r.err;
-  const std::string csv = slurp(out);
+  const std::string csv = read_file(out);
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 2 * 2 * 2 * 2 * (3 + 1));
   EXPECT_EQ(csv.rfind("noise_level,sigma,scheme,laplacian,lambda_edge2,", 0), 0u);
   // Four "level ..., scheme: best ..." lines.
   std::size_t best_lines = 0;
   for(std::size_t p = r.out.find("best "); p != std::string::npos; p = r.out.find("best ", p + 1)) ++best_lines;
   EXPECT_EQ(best_lines, 4u) << r.out;
-  const std::string plot = slurp(svg);
+  const std::string plot = read_file(svg);
   EXPECT_EQ(plot.rfind("<svg", 0), 0u);
   EXPECT_NE(plot.find("implicit cotangent"), std::string::npos);
 }
@@ -464,7 +442,7 @@ TEST(DenoisingCli, FailedRunsSayWhyInTheCsvAndTheSummary)
   const Cli_result r = run_study_cli(in + " -o " + out + " --levels 0 --schemes implicit --laplacians uniform,cotangent "
                                      "--lambda-unit absolute --lambdas 0.01 --iterations 12");
   ASSERT_EQ(r.status, 0) << r.err;
-  std::istringstream csv(slurp(out));
+  std::istringstream csv(read_file(out));
   std::string line;
   std::getline(csv, line);
   const std::vector<std::string> header = csv_fields(line);
@@ -501,7 +479,7 @@ TEST(DenoisingCli, LegendEntriesMatchThePlottedSeries)
   const Cli_result r = run_study_cli(in + " -o " + out + " --plot " + svg + " --levels 0 --schemes implicit "
                                      "--laplacians uniform,cotangent --lambda-unit absolute --lambdas 0.01,0.03 --iterations 12");
   ASSERT_EQ(r.status, 0) << r.err;
-  const std::string plot = slurp(svg);
+  const std::string plot = read_file(svg);
   auto blocks = [&](const std::string& cls) {
     std::vector<std::string> out;
     const std::string open = "<g class=\"" + cls + "\"";

@@ -46,18 +46,11 @@ std::string read_error(const std::string& name, const std::string& text)
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
-std::string read_file(const std::string& path)
-{
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 // Runs the CLI with `args` (shell words); returns its exit status and its stderr.
 std::pair<int, std::string> run_cli(const std::string& args)
 {
-  const std::string err = tmp_path("cli_stderr.txt");
-  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " >/dev/null 2>" + err).c_str());
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, read_file(err)};
+  const Cli_result r = run_lapmesh(args);
+  return {r.status, r.err};
 }
 
 // A regular tetrahedron (data/tetrahedron.off) with every coordinate multiplied by `scale`.
@@ -264,12 +257,13 @@ TEST(Io, AtomicWritesLeaveNothingBehindOnFailure)
 
 TEST(Io, ReadsCgalDataSetMeshes)
 {
-  for(const auto& [name, faces] : {std::pair<std::string, std::size_t>{"cow.off", 5804}, {"elephant.off", 5558},
-                                    {"colored_tetra.ply", 4}}) {
+  using Case = std::pair<std::string, std::size_t>;  // a mesh file and its number of faces
+  run_test_cases(std::vector<Case>{{"cow.off", 5804}, {"elephant.off", 5558}, {"colored_tetra.ply", 4}}, [](const Case& c) {
+    const auto& [name, faces] = c;
     Mesh m;
     ASSERT_NO_THROW(lapmesh::io::read_triangle_mesh(cgal_mesh(name), m)) << name;
     EXPECT_EQ(num_faces(m), faces) << name;
-  }
+  });
   Mesh cloud;  // b9.ply is a point cloud: no faces
   EXPECT_THROW(lapmesh::io::read_triangle_mesh(cgal_mesh("b9.ply"), cloud), lapmesh::Mesh_error);
 }

@@ -1,7 +1,7 @@
-// Smoothing and noise: mean curvature flow on a sphere against r(t)^2 = r0^2 - 4t, the
-// explicit stability bound against a dense eigen-solve, implicit steps against dense
-// Dirichlet solves, bitwise-fixed constraints, volume restoration, reproducible noise with
-// the right statistics, denoising, and the command line's refusal of bad lambda/iterations.
+// Smoothing: mean curvature flow on a sphere against r(t)^2 = r0^2 - 4t, the explicit
+// stability bound against a dense eigen-solve, implicit steps against dense Dirichlet solves,
+// bitwise-fixed constraints, volume restoration, denoising a noisy sphere, and the command
+// line's refusal of bad lambda/iterations (the noise itself: noise_test.cpp).
 #include "test_helpers.h"
 
 #include <lapmesh/laplacian_smoothing.h>
@@ -21,19 +21,11 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
-#include <sys/wait.h>
 
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
 
 namespace {
-
-Eigen::MatrixXd positions(const Mesh& m)
-{
-  Eigen::MatrixXd P(num_vertices(m), 3);
-  for(auto v : vertices(m)) P.row(v.idx()) << m.point(v).x(), m.point(v).y(), m.point(v).z();
-  return P;
-}
 
 Mesh jittered(lapmesh::Triangle_soup soup, double amount, unsigned seed)
 {
@@ -541,64 +533,6 @@ TEST(Smoothing, ConformalFlowAgreesWithCgalSmoothShape)
   }
 }
 
-TEST(Noise, SameSeedSameNoiseDifferentSeedDifferentNoise)
-{
-  const Mesh input = to_mesh(lapmesh::icosphere(3));
-  for(auto dir : {lapmesh::Noise_direction::isotropic, lapmesh::Noise_direction::normal}) {
-    Mesh a = input, b = input, c = input;
-    lapmesh::add_noise(a, 0.1, LP::noise_direction(dir).random_seed(7));
-    lapmesh::add_noise(b, 0.1, LP::noise_direction(dir).random_seed(7));
-    lapmesh::add_noise(c, 0.1, LP::noise_direction(dir).random_seed(8));
-    EXPECT_EQ((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 0.0);
-    EXPECT_GT((positions(a) - positions(c)).cwiseAbs().maxCoeff(), 1e-3);
-  }
-  // noise_seed takes all 64 bits and precedence over random_seed, which it equals below 2^32.
-  Mesh a = input, b = input, c = input;
-  lapmesh::add_noise(a, 0.1, LP::noise_seed(std::uint64_t(7)));
-  lapmesh::add_noise(b, 0.1, LP::noise_seed(std::uint64_t(7) + (std::uint64_t(1) << 40)).random_seed(7));
-  lapmesh::add_noise(c, 0.1, CGAL::parameters::random_seed(7));
-  EXPECT_EQ((positions(a) - positions(c)).cwiseAbs().maxCoeff(), 0.0);
-  EXPECT_GT((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-3);
-  // std::mt19937_64 is fixed by the standard: its 10000th output from the default seed.
-  std::mt19937_64 rng;
-  rng.discard(9999);
-  EXPECT_EQ(rng(), 9981545732273789042ull);
-}
-
-TEST(Noise, StatisticsMatchSigma)
-{
-  const Mesh input = to_mesh(lapmesh::icosphere(5));
-  double edge_sum = 0;
-  for(auto e : edges(input)) edge_sum += std::sqrt(CGAL::squared_distance(input.point(source(e, input)), input.point(target(e, input))));
-  const double mean_edge = edge_sum / double(num_edges(input));
-  const double level = 0.05;
-  {
-    Mesh m = input;
-    const double sigma = lapmesh::add_noise(m, level, CGAL::parameters::random_seed(3));
-    EXPECT_NEAR(sigma, level * mean_edge, 1e-12);
-    const Eigen::MatrixXd d = positions(m) - positions(input);
-    const Eigen::Map<const Eigen::VectorXd> all(d.data(), d.size());  // 30726 samples
-    EXPECT_NEAR(all.mean(), 0.0, 4 * sigma / std::sqrt(double(all.size())));
-    EXPECT_NEAR(rms(all), sigma, 0.03 * sigma);
-  }
-  {
-    Mesh m = input;
-    const double sigma = lapmesh::add_noise(
-      m, level, LP::noise_scale(lapmesh::Noise_scale::bounding_box_diagonal, LP::noise_direction(lapmesh::Noise_direction::normal)));
-    const Eigen::MatrixXd P = positions(input);
-    const double diag = (P.colwise().maxCoeff() - P.colwise().minCoeff()).norm();
-    EXPECT_NEAR(sigma, level * diag, 1e-12);
-    const Eigen::MatrixXd d = positions(m) - P;
-    Eigen::VectorXd along(d.rows());
-    for(Eigen::Index i = 0; i < d.rows(); ++i) {
-      const Eigen::Vector3d normal = P.row(i).normalized();  // icosphere: the normal is radial to ~1e-3
-      along[i] = d.row(i).dot(normal);
-      EXPECT_LE((d.row(i).transpose() - along[i] * normal).norm(), 1e-2 * std::abs(along[i]) + 1e-15);
-    }
-    EXPECT_NEAR(rms(along), sigma, 0.03 * sigma);
-  }
-}
-
 TEST(Smoothing, SmoothingANoisySphereLowersTheError)
 {
   const Mesh clean = to_mesh(lapmesh::icosphere(4));
@@ -636,23 +570,6 @@ TEST(Smoothing, RejectsBadArguments)
 
 namespace {
 
-struct Run_result
-{
-  int status;
-  std::string err;
-};
-
-Run_result run_cli(const std::string& args)
-{
-  const std::string err_path = lapmesh_test::scratch_dir() + "/smooth_stderr.txt";
-  const std::string cmd = std::string(LAPMESH_CLI) + " " + args + " >/dev/null 2>" + err_path;
-  const int raw = std::system(cmd.c_str());
-  std::ifstream in(err_path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, ss.str()};
-}
-
 std::string write_sphere()
 {
   const std::string path = lapmesh_test::scratch_dir() + "/smooth_in.off";
@@ -673,14 +590,14 @@ TEST(SmoothingCli, BadLambdaOrIterationsFailCleanly)
     "--lambda inf --iterations 3",    "--lambda abc --iterations 3",  "--lambda 0.01 --iterations 0",
     "--lambda 0.01 --iterations -2"};
   for(const std::string scheme : {"explicit", "implicit"})
-    for(const std::string& args : bad) {
+    run_test_cases(bad, [&](const std::string& args) {
       std::filesystem::remove(out);
-      const Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme " + scheme + " " + args);
+      const Cli_result r = run_lapmesh("smooth " + in + " -o " + out + " --scheme " + scheme + " " + args);
       EXPECT_NE(r.status, 0) << args;
       EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
       EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
       EXPECT_FALSE(std::filesystem::exists(out)) << args;
-    }
+    });
 }
 
 TEST(SmoothingCli, RestoreAreaNeedsAFreeBoundary)
@@ -694,12 +611,12 @@ TEST(SmoothingCli, RestoreAreaNeedsAFreeBoundary)
   }
   const std::string out = lapmesh_test::scratch_dir() + "/patch_out.off";
   std::filesystem::remove(out);
-  Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 2 --restore-area");
+  Cli_result r = run_lapmesh("smooth " + in + " -o " + out + " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 2 --restore-area");
   EXPECT_NE(r.status, 0);
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_NE(r.err.find("--free-boundary"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(out));
-  r = run_cli("smooth " + in + " -o " + out +
+  r = run_lapmesh("smooth " + in + " -o " + out +
               " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 2 --restore-area --free-boundary");
   EXPECT_EQ(r.status, 0) << r.err;
   Mesh original, got;
@@ -714,7 +631,7 @@ TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
   const std::string in = write_sphere();
   const std::string out = lapmesh_test::scratch_dir() + "/smooth_ok.off";
   std::filesystem::remove(out);
-  Run_result r = run_cli("smooth " + in + " -o " + out + " --scheme implicit --lambda 0.001 --iterations 2");
+  Cli_result r = run_lapmesh("smooth " + in + " -o " + out + " --scheme implicit --lambda 0.001 --iterations 2");
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_TRUE(std::filesystem::exists(out));
   // The CLI output equals the library's result to the printed precision.
@@ -725,14 +642,14 @@ TEST(SmoothingCli, SmoothAndNoiseWriteMeshes)
   EXPECT_LE((positions(got) - positions(expected)).cwiseAbs().maxCoeff(), 1e-15);
 
   const std::string n1 = lapmesh_test::scratch_dir() + "/noise1.off", n2 = lapmesh_test::scratch_dir() + "/noise2.off";
-  EXPECT_EQ(run_cli("noise " + in + " -o " + n1 + " --level 0.1 --seed 5").status, 0);
-  EXPECT_EQ(run_cli("noise " + in + " -o " + n2 + " --level 0.1 --seed 5").status, 0);
+  EXPECT_EQ(run_lapmesh("noise " + in + " -o " + n1 + " --level 0.1 --seed 5").status, 0);
+  EXPECT_EQ(run_lapmesh("noise " + in + " -o " + n2 + " --level 0.1 --seed 5").status, 0);
   std::ifstream a(n1), b(n2);
   std::stringstream sa, sb;
   sa << a.rdbuf();
   sb << b.rdbuf();
   EXPECT_EQ(sa.str(), sb.str());
-  r = run_cli("noise " + in + " -o " + n1 + " --level -1");
+  r = run_lapmesh("noise " + in + " -o " + n1 + " --level -1");
   EXPECT_NE(r.status, 0);
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
@@ -742,13 +659,8 @@ namespace {
 // Runs the CLI and returns its stdout (empty on a non-zero status).
 std::string cli_stdout(const std::string& args)
 {
-  const std::string out_path = lapmesh_test::scratch_dir() + "/smooth_stdout.txt";
-  const std::string cmd = std::string(LAPMESH_CLI) + " " + args + " >" + out_path + " 2>/dev/null";
-  const int raw = std::system(cmd.c_str());
-  std::ifstream in(out_path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return WIFEXITED(raw) && WEXITSTATUS(raw) == 0 ? ss.str() : std::string();
+  const Cli_result r = run_lapmesh(args);
+  return r.status == 0 ? r.out : std::string();
 }
 
 double printed_bound(const std::string& line)

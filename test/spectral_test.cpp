@@ -426,22 +426,6 @@ TEST(Spectral, RefusesNonPositiveVoronoiArea)
 // ---- command line ------------------------------------------------------------------
 namespace {
 
-struct Cli_run
-{
-  int status;
-  std::string err;
-};
-
-Cli_run run_cli(const std::string& args)
-{
-  const std::string errfile = lapmesh_test::scratch_dir() + "/spectral_cli.err";
-  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " 2>" + errfile + " >/dev/null").c_str());
-  std::ifstream in(errfile);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
-}
-
 int count_lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
 
 std::string small_mesh()
@@ -463,15 +447,15 @@ TEST(SpectralCli, BadKIsOneLineAndNoOutput)
   const std::string in = small_mesh();
   for(const std::string cmd : {"spectrum", "reconstruct"}) {
     const std::string out = lapmesh_test::scratch_dir() + "/bad_k." + (cmd == "spectrum" ? "csv" : "off");
-    for(const std::string k : {"0", "-3", "43", "1000"}) {
+    run_test_cases({"0", "-3", "43", "1000"}, [&](const std::string k) {
       std::filesystem::remove(out);
-      const Cli_run r = run_cli(cmd + " " + in + " -o " + out + " -k " + k);
+      const Cli_result r = run_lapmesh(cmd + " " + in + " -o " + out + " -k " + k);
       EXPECT_NE(r.status, 0) << cmd << " -k " << k;
       EXPECT_EQ(count_lines(r.err), 1) << r.err;
       EXPECT_NE(r.err.find(in), std::string::npos) << r.err;
       EXPECT_NE(r.err.find("-k"), std::string::npos) << r.err;
       EXPECT_FALSE(std::filesystem::exists(out)) << cmd << " -k " << k;
-    }
+    });
   }
 }
 
@@ -479,7 +463,7 @@ TEST(SpectralCli, SpectrumAndReconstructWork)
 {
   const std::string in = small_mesh();
   const std::string csv = lapmesh_test::scratch_dir() + "/ev.csv";
-  Cli_run r = run_cli("spectrum " + in + " -o " + csv + " -k 4");
+  Cli_result r = run_lapmesh("spectrum " + in + " -o " + csv + " -k 4");
   ASSERT_EQ(r.status, 0) << r.err;
   std::ifstream f(csv);
   std::string line;
@@ -495,13 +479,13 @@ TEST(SpectralCli, SpectrumAndReconstructWork)
   // k = n reproduces the input; --save-basis then --load-basis gives the same result.
   const std::string out = lapmesh_test::scratch_dir() + "/rec.off", out2 = lapmesh_test::scratch_dir() + "/rec2.off";
   const std::string basis = lapmesh_test::scratch_dir() + "/small.basis";
-  r = run_cli("reconstruct " + in + " -o " + out + " -k 42 --save-basis " + basis);
+  r = run_lapmesh("reconstruct " + in + " -o " + out + " -k 42 --save-basis " + basis);
   ASSERT_EQ(r.status, 0) << r.err;
   Mesh a, b, c;
   lapmesh::io::read_triangle_mesh(in, a);
   lapmesh::io::read_triangle_mesh(out, b);
   EXPECT_LT((positions_of(a) - positions_of(b)).cwiseAbs().maxCoeff(), 1e-8 * bbox_diagonal(positions_of(a)));
-  r = run_cli("reconstruct " + in + " -o " + out2 + " -k 5 --load-basis " + basis);
+  r = run_lapmesh("reconstruct " + in + " -o " + out2 + " -k 5 --load-basis " + basis);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find("warning"), std::string::npos) << "k = 5 splits the l = 2 eigenspace: " << r.err;
   lapmesh::io::read_triangle_mesh(out2, c);

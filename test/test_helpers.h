@@ -1,5 +1,6 @@
 // Shared fixtures of the test suite and the benchmarks: mesh types and analytic meshes; for the
-// tests (LAPMESH_TEST_TMP defined) also per-test scratch directories.
+// tests (LAPMESH_TEST_TMP defined) also per-test scratch directories, table-driven cases and
+// (LAPMESH_CLI defined) the runner of the command-line tool.
 #ifndef LAPMESH_TEST_HELPERS_H
 #define LAPMESH_TEST_HELPERS_H
 
@@ -11,15 +12,25 @@
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/graph_traits_Polyhedron_3.h>
 
+#include <Eigen/Core>
+
 #ifdef LAPMESH_TEST_TMP  // the test suite (the benchmarks share the meshes, not GoogleTest)
 #include <gtest/gtest.h>
 #endif
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <iterator>
+#include <sstream>
 #include <string>
+#include <type_traits>
+#include <utility>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace lapmesh_test {
@@ -59,7 +70,84 @@ inline std::string scratch_dir()
   std::filesystem::create_directories(dir);
   return dir;
 }
+
+/// The whole content of a file (empty when it cannot be read).
+inline std::string read_file(const std::string& path)
+{
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+/// The name of a case in failure messages: the string itself, the first member of a pair, or
+/// what GoogleTest prints.
+template <typename Case>
+std::string case_name(const Case& c)
+{
+  if constexpr(std::is_convertible_v<const Case&, std::string>)
+    return std::string(c);
+  else
+    return ::testing::PrintToString(c);
+}
+template <typename Name, typename Value>
+std::string case_name(const std::pair<Name, Value>& c)
+{
+  return case_name(c.first);
+}
+
+/// Runs `test_case` on every case of a table (mesh files, argument lists...), every failure
+/// message naming its case, in the manner of libigl's test_common::run_test_cases. A fatal
+/// assertion ends that case only.
+template <typename Cases, typename Function>
+void run_test_cases(const Cases& cases, Function test_case)
+{
+  for(const auto& c : cases) {
+    SCOPED_TRACE("case: " + case_name(c));
+    test_case(c);
+  }
+}
+template <typename Case, typename Function>
+void run_test_cases(std::initializer_list<Case> cases, Function test_case)
+{
+  run_test_cases<std::initializer_list<Case>, Function>(cases, test_case);
+}
+/// The same with the cases' names given by `name_of(case)` (cases that are structs).
+template <typename Cases, typename Name_of, typename Function>
+void run_test_cases(const Cases& cases, Name_of name_of, Function test_case)
+{
+  for(const auto& c : cases) {
+    SCOPED_TRACE("case: " + std::string(name_of(c)));
+    test_case(c);
+  }
+}
 #endif
+
+#if defined(LAPMESH_TEST_TMP) && defined(LAPMESH_CLI)
+/// What a run of the lapmesh executable gave: its exit status (-1 when it did not exit), stdout
+/// and stderr.
+struct Cli_result
+{
+  int status;
+  std::string out, err;
+};
+
+/// Runs the lapmesh executable with `args` (shell words, as typed after `lapmesh`), capturing
+/// both streams in files of the running test's scratch directory.
+inline Cli_result run_lapmesh(const std::string& args)
+{
+  const std::string dir = scratch_dir();
+  const std::string out = dir + "/lapmesh_stdout.txt", err = dir + "/lapmesh_stderr.txt";
+  const int rc = std::system((std::string(LAPMESH_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, read_file(out), read_file(err)};
+}
+#endif
+
+/// The vertex positions of a Surface_mesh, one row per vertex (in index order).
+inline Eigen::MatrixXd positions(const Mesh& m)
+{
+  Eigen::MatrixXd P(num_vertices(m), 3);
+  for(auto v : vertices(m)) P.row(v.idx()) << m.point(v).x(), m.point(v).y(), m.point(v).z();
+  return P;
+}
 
 /// Root-mean-square of a vector.
 template <typename Vector>
