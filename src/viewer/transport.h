@@ -1,4 +1,5 @@
-// The transport of `lapmesh view`: connections and the stream requests are read from.
+// The transport of `lapmesh view`: the listening socket, the connections and the stream
+// requests are read from.
 //
 // httplib parses requests and routes them, but its own accept loop cannot stand up to slow
 // or hostile clients (a fixed pool of 8 threads held by half-sent requests, header lines
@@ -16,6 +17,9 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <list>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -98,6 +102,52 @@ private:
   std::size_t m_head_bytes = 0, m_body_bytes = 0;
   std::uint64_t m_tail = 0;
   Clock::time_point m_deadline;
+};
+
+/// The listening socket and the connections: each accepted connection gets its own thread
+/// (bounded in number, overall and per client address), which feeds its requests to the
+/// router through a Limited_stream.
+class Listener
+{
+public:
+  Listener(Http_router& http, const Transport_limits& limits, int max_connections, int max_per_address)
+    : http(http), limits(limits), max_connections(max_connections), max_per_address(max_per_address)
+  {}
+  Listener(const Listener&) = delete;
+  Listener& operator=(const Listener&) = delete;
+
+  /// Binds and listens on host:port (0: a free port); returns the port.
+  int bind(const std::string& host, int port);
+  bool bound() const { return listen_fd >= 0; }
+  /// Accepts connections in the calling thread until stop_accepting().
+  void accept_loop();
+  /// Accepts connections in a thread of its own; returns the port.
+  int start();
+  /// Stops accepting and closes the listening socket; the connections go on.
+  void stop_accepting();
+  /// Shuts the connections down and joins their threads.
+  void close_connections();
+
+private:
+  int bound_port() const;
+  void reap_locked();
+  void reap();
+  void admit(int fd, const std::string& address);
+  void serve(Connection& c);
+
+  /// A connection waiting for (the rest of) a request this long counts as stalled: it may be
+  /// closed to make room. Shorter waits are spared (a request in flight, a loaded machine).
+  static constexpr long long stalled_after_ns = 1'000'000'000;
+  static constexpr int max_requests_per_connection = 1000;
+
+  Http_router& http;
+  const Transport_limits limits;
+  const int max_connections, max_per_address;
+  int listen_fd = -1;
+  std::atomic<bool> stopping{false}, accepting{false};
+  std::thread accept_thread;
+  std::mutex connections_mutex;
+  std::list<std::unique_ptr<Connection>> connections;
 };
 
 /// Before closing a connection whose request was not read to its end: stop sending, then

@@ -4,7 +4,8 @@
 // A front end of the operations layer (src/operations), as the command line is: each
 // operation reads its parameters (request_params.h), calls lapmesh_ops and encodes the answer
 // (JSON, or a binary frame: frames.h). One state per mesh, guarded by its own lock: a second
-// operation on a busy mesh gets 409 instead of waiting. Connections: transport.h.
+// operation on a busy mesh gets 409 instead of waiting. The socket and the connections:
+// transport.h.
 #include "viewer_server.h"
 
 // The library's headers first: the socket headers (through transport.h) define macros such as
@@ -23,13 +24,6 @@
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
-
-#include <arpa/inet.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
@@ -293,21 +287,18 @@ struct Server::Impl
     return {{"bytes", st.bytes}, {"budget_bytes", st.budget_bytes}, {"entries", st.entries}};
   }
 
-  // Transport (see "transport" above).
   Http_router http;
-  Transport_limits limits;
-  int listen_fd = -1;
-  std::atomic<bool> stopping{false}, accepting{false};
-  std::thread accept_thread;
-  std::mutex connections_mutex;
-  std::list<std::unique_ptr<Connection>> connections;
-  static constexpr int max_requests_per_connection = 1000;
+  Listener listener;  // the socket and the connections (transport.h)
 
-  Impl(std::vector<Mesh_source> sources, Server_options o) : options(std::move(o)), bases(options.cache_bytes)
+  Impl(std::vector<Mesh_source> sources, Server_options o)
+    : options(std::move(o)),
+      bases(options.cache_bytes),
+      listener(http,
+               {options.request_timeout_ms, options.io_timeout_ms, options.keep_alive_ms, options.max_header_bytes,
+                // the body as sent: chunk framing of reasonably sized chunks fits in the margin
+                2 * options.max_body_bytes + 4096},
+               options.max_connections, options.max_connections_per_address)
   {
-    limits = {options.request_timeout_ms, options.io_timeout_ms, options.keep_alive_ms, options.max_header_bytes,
-              // the body as sent: chunk framing of reasonably sized chunks fits in the margin
-              2 * options.max_body_bytes + 4096};
     for(auto& s : sources) {
       if(s.id.empty() || s.id != sanitize_id(s.id) || by_id.count(s.id))
         throw std::invalid_argument("invalid or duplicate mesh id '" + s.id + "'");
@@ -701,166 +692,11 @@ struct Server::Impl
     }
   }
 
-  // ---- connections ----
-
-  void accept_loop()
-  {
-    accepting = true;
-    while(!stopping) {
-      pollfd p{listen_fd, POLLIN, 0};
-      const int r = ::poll(&p, 1, 100);  // wakes up to see `stopping`
-      if(r <= 0) {
-        reap();
-        continue;
-      }
-      sockaddr_storage a{};
-      socklen_t len = sizeof a;
-      const int fd = ::accept4(listen_fd, (sockaddr*)&a, &len, SOCK_CLOEXEC);
-      if(fd < 0) {
-        if(errno == EMFILE || errno == ENFILE) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-        continue;
-      }
-      char host[NI_MAXHOST] = "?";
-      ::getnameinfo((sockaddr*)&a, len, host, sizeof host, nullptr, 0, NI_NUMERICHOST);
-      admit(fd, host);
-    }
-    accepting = false;
-  }
-
-  /// Joins the threads of finished connections (connections_mutex held).
-  void reap_locked()
-  {
-    for(auto it = connections.begin(); it != connections.end();) {
-      if((*it)->finished) {
-        if((*it)->thread.joinable()) (*it)->thread.join();
-        it = connections.erase(it);
-      } else {
-        ++it;
-      }
-    }
-  }
-  void reap()
-  {
-    std::lock_guard<std::mutex> g(connections_mutex);
-    reap_locked();
-  }
-
-  /// A connection waiting for (the rest of) a request this long counts as stalled: it may be
-  /// closed to make room. Shorter waits are spared (a request in flight, a loaded machine).
-  static constexpr long long stalled_after_ns = 1'000'000'000;
-
-  /// Gives a new connection its thread, within the limits: over a limit, the connection
-  /// (of this address, or any) that has stalled longest is closed to make room; if none has
-  /// stalled, the newcomer gets 503.
-  void admit(int fd, const std::string& address)
-  {
-    std::lock_guard<std::mutex> g(connections_mutex);
-    reap_locked();
-    int total = 0, same = 0;
-    Connection *oldest_same = nullptr, *oldest_any = nullptr;
-    auto older = [](Connection* a, Connection* b) { return !a || b->phase_since_ns < a->phase_since_ns; };
-    const long long now = Clock::now().time_since_epoch().count();
-    for(auto& c : connections) {
-      if(c->finished || c->fd < 0 || c->evicted) continue;
-      // A connection its client has closed is about to end (its thread may just not have run
-      // yet on a loaded machine): it does not count.
-      pollfd p{c->fd, POLLRDHUP, 0};
-      if(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR))) continue;
-      ++total;
-      const bool idle = c->phase != Connection::Phase::handling && now - c->phase_since_ns >= stalled_after_ns;
-      if(c->address == address) {
-        ++same;
-        if(idle && older(oldest_same, c.get())) oldest_same = c.get();
-      }
-      if(idle && older(oldest_any, c.get())) oldest_any = c.get();
-    }
-    Connection* victim = nullptr;
-    bool refuse = false;
-    if(same >= options.max_connections_per_address) {
-      victim = oldest_same;
-      refuse = !victim;
-    } else if(total >= options.max_connections) {
-      victim = oldest_any;
-      refuse = !victim;
-    }
-    if(refuse) {
-      static const std::string body = R"({"error": "too many connections"})";
-      const std::string answer = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
-                                 "Connection: close\r\nContent-Length: " +
-                                 std::to_string(body.size()) + "\r\n\r\n" + body;
-      [[maybe_unused]] const ssize_t n = ::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-      ::close(fd);
-      return;
-    }
-    if(victim) {
-      victim->evicted = true;
-      ::shutdown(victim->fd, SHUT_RDWR);  // its thread sees end of file and finishes
-    }
-    auto c = std::make_unique<Connection>();
-    c->fd = fd;
-    c->address = address;
-    c->set_phase(Connection::Phase::waiting);
-    Connection* raw = c.get();
-    connections.push_back(std::move(c));
-    raw->thread = std::thread([this, raw] {
-      serve(*raw);
-      raw->finished = true;
-    });
-  }
-
-  void serve(Connection& c)
-  {
-    current_connection = &c;
-    Limited_stream stream(c, limits);
-    for(int i = 0; i < max_requests_per_connection && !stopping; ++i) {
-      if(!stream.begin_request()) break;
-      bool closed = false;
-      const bool ok = http.process_request(stream, i + 1 == max_requests_per_connection, closed, nullptr);
-      if(!ok && c.limit != Connection::Limit::none) {
-        // httplib gives up without an answer when the request line itself is cut short.
-        const int status = c.limit == Connection::Limit::head ? 431 : c.limit == Connection::Limit::body ? 413 : 408;
-        const std::string body = R"({"error": "request )" +
-                                 std::string(status == 431 ? "header too large" : status == 413 ? "body too large" : "timed out") +
-                                 "\"}";
-        const std::string answer = "HTTP/1.1 " + std::to_string(status) +
-                                   " Refused\r\nContent-Type: application/json\r\nConnection: close\r\nContent-Length: " +
-                                   std::to_string(body.size()) + "\r\n\r\n" + body;
-        stream.write(answer.data(), answer.size());
-      }
-      if(!ok || closed || c.must_close) break;
-    }
-    if(c.must_close) drain(c.fd);
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      ::close(c.fd);  // under the lock: nobody shuts down this number once it may be reused
-      c.fd = -1;
-    }
-    current_connection = nullptr;
-  }
-
   void stop()
   {
-    stopping = true;
-    if(accept_thread.joinable()) accept_thread.join();
-    for(int i = 0; i < 50 && accepting; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    if(listen_fd >= 0) {
-      ::close(listen_fd);
-      listen_fd = -1;
-    }
+    listener.stop_accepting();
     for(auto& s : meshes) s->cancel = true;
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      for(auto& c : connections)
-        if(c->fd >= 0) ::shutdown(c->fd, SHUT_RDWR);
-    }
-    // Connection threads only take connections_mutex briefly: join outside it.
-    std::list<std::unique_ptr<Connection>> all;
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      all.swap(connections);
-    }
-    for(auto& c : all)
-      if(c->thread.joinable()) c->thread.join();
+    listener.close_connections();
   }
 
   static bool has_body(const httplib::Request& req)
@@ -1127,67 +963,18 @@ void Server::preload()
   }
 }
 
-int Server::bind()
-{
-  if(m->listen_fd >= 0) throw std::runtime_error("the server is bound already");
-  const std::string& host = m->options.host;
-  const std::string where = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" +
-                            std::to_string(m->options.port);
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
-  addrinfo* found = nullptr;
-  if(const int rc = ::getaddrinfo(host.c_str(), std::to_string(m->options.port).c_str(), &hints, &found); rc != 0)
-    throw std::runtime_error("cannot bind to " + where + ": " + ::gai_strerror(rc));
-  int error = 0;
-  for(addrinfo* a = found; a && m->listen_fd < 0; a = a->ai_next) {
-    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
-    if(fd < 0) {
-      error = errno;
-      continue;
-    }
-    // SO_REUSEADDR only (a restart may bind over connections in TIME_WAIT); never
-    // SO_REUSEPORT, which would let a second server share this port and its requests.
-    const int yes = 1;
-    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-    if(::bind(fd, a->ai_addr, a->ai_addrlen) == 0 && ::listen(fd, 64) == 0) {
-      m->listen_fd = fd;
-    } else {
-      error = errno;
-      ::close(fd);
-    }
-  }
-  ::freeaddrinfo(found);
-  if(m->listen_fd < 0)
-    throw std::runtime_error("cannot bind to " + where + ": " + std::strerror(error) +
-                             (error == EADDRINUSE ? " (another server listens there: try another --port, or none for a free one)"
-                                                  : ""));
-  sockaddr_storage a{};
-  socklen_t len = sizeof a;
-  ::getsockname(m->listen_fd, (sockaddr*)&a, &len);
-  return ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
-}
+int Server::bind() { return m->listener.bind(m->options.host, m->options.port); }
 
 void Server::listen()
 {
-  if(m->listen_fd < 0) bind();
-  m->accept_loop();
+  if(!m->listener.bound()) bind();
+  m->listener.accept_loop();
 }
 
 int Server::start()
 {
-  int port = 0;
-  {
-    sockaddr_storage a{};
-    socklen_t len = sizeof a;
-    if(m->listen_fd < 0) port = bind();
-    else if(::getsockname(m->listen_fd, (sockaddr*)&a, &len) == 0)
-      port = ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
-  }
-  m->accepting = true;
-  m->accept_thread = std::thread([this] { m->accept_loop(); });
-  return port;
+  if(!m->listener.bound()) bind();
+  return m->listener.start();
 }
 
 void Server::stop() { m->stop(); }
