@@ -671,7 +671,8 @@ struct Server::Impl
     } catch(const lapmesh::Parameter_error& e) {
       // A setting the operations layer refused, named as the request names it.
       std::string what = "'" + spelling(e.parameter()) + "' " + e.what();
-      if(!e.suggested_value().empty()) what += " (use " + spelling(lapmesh_ops::Suggestion{e.parameter(), e.suggested_value()}) + ")";
+      if(!e.suggested_value().empty())
+        what += " (use " + spelling(lapmesh_ops::Suggestion{e.parameter(), e.suggested_value()}) + ")";
       send_error(res, 400, what);
     } catch(const Cancelled&) {
       send_error(res, 409, "cancelled");
