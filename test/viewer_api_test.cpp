@@ -172,6 +172,29 @@ TEST_F(ViewerApi, InfoMeshesAndColormaps)
 {
   const json info = get_json("/api/info");
   EXPECT_EQ(info["limits"]["max_k"], 200);
+  // The page's dropdowns: the library's name tables, with the defaults of the operations.
+  const auto names_of = [&](const char* key) {
+    std::vector<std::string> out;
+    for(const json& v : info["choices"][key]["values"]) {
+      EXPECT_FALSE(v["description"].get<std::string>().empty()) << key;
+      out.push_back(v["name"]);
+    }
+    return out;
+  };
+  EXPECT_EQ(names_of("laplacian"), lapmesh::names<lapmesh::Laplacian>());
+  EXPECT_EQ(names_of("area"), lapmesh::names<lapmesh::Vertex_area>());
+  EXPECT_EQ(names_of("scheme"), lapmesh::names<lapmesh::Smoothing_scheme>());
+  EXPECT_EQ(names_of("lambda_unit"), lapmesh::names<lapmesh::Time_step_unit>());
+  EXPECT_EQ(names_of("scale"), lapmesh::names<lapmesh::Noise_scale>());
+  EXPECT_EQ(names_of("direction"), lapmesh::names<lapmesh::Noise_direction>());
+  EXPECT_EQ(names_of("colormap"), lapmesh::names<lapmesh::Colormap>());
+  EXPECT_EQ(info["choices"]["laplacian"]["default"], "cotangent");
+  EXPECT_EQ(info["choices"]["area"]["default"], "barycentric");
+  EXPECT_EQ(info["choices"]["scheme"]["default"], "implicit");
+  EXPECT_EQ(info["choices"]["lambda_unit"]["default"], "absolute");
+  EXPECT_EQ(info["choices"]["scale"]["default"], "mean-edge");
+  EXPECT_EQ(info["choices"]["direction"]["default"], "isotropic");
+  EXPECT_EQ(info["choices"]["colormap"]["default"], "jet");
   const json meshes = get_json("/api/meshes")["meshes"];
   ASSERT_EQ(meshes.size(), 4u);
   EXPECT_EQ(meshes[0]["id"], "cow");
@@ -328,6 +351,9 @@ TEST_F(ViewerApi, SmoothingMovesVerticesAsTheLibraryAndResetRestores)
   EXPECT_FALSE(e.contains("warning"));
   const json w = post("/api/meshes/cow/smooth", {{"scheme", "explicit"}, {"lambda", 5.0}, {"iterations", 1}, {"laplacian", "uniform"}});
   EXPECT_TRUE(w.contains("warning"));
+  EXPECT_NE(w["warning"].get<std::string>().find("exceeds the explicit stability bound"), std::string::npos);
+  EXPECT_NE(w["warning"].get<std::string>().find("(use lambda \"auto\" or lambda_unit \"bound\")"), std::string::npos)
+    << w["warning"];
   post("/api/meshes/cow/smooth", {{"scheme", "conformal"}, {"lambda", 0.5}, {"lambda_unit", "edge2"}, {"iterations", 1}, {"area", "mixed"}});
 
   // The bound served for a small lambda is explicit_stability_bound() of the mesh, as the CLI
@@ -364,6 +390,9 @@ TEST_F(ViewerApi, SmoothingMovesVerticesAsTheLibraryAndResetRestores)
                          json{{"fixed_operator", "yes"}}, json{{"lambda_unit", "furlong"}}, json{{"lamda", 1}},
                          json{{"restore_area", 1}}, json{{"fix_boundary", "no"}}})
     expect_refused(client().Post("/api/meshes/cow/smooth", bad.dump(), "application/json"), 400);
+  // The operations layer's check, named as the request names the parameter.
+  expect_refused(client().Post("/api/meshes/cow/smooth", json{{"lambda", 1e13}}.dump(), "application/json"), 400,
+                 "'lambda' must be a positive finite time step");
   EXPECT_EQ(positions("cow"), before);
 }
 

@@ -1,33 +1,29 @@
-// The HTTP server of `lapmesh view` (API reference: doc/viewer.md).
+// The HTTP server of `lapmesh view` (API reference: doc/viewer.md): the per-mesh state, the
+// operations and the routes.
 //
-// Every computation is a call into the public lapmesh headers; this file only validates
-// requests, keeps one state per mesh (guarded by its own mutex: a second operation on a
-// busy mesh gets 409 instead of waiting) and encodes the answers. Large arrays travel as one
-// binary "frame": uint32 little-endian header length, a JSON header, zero padding to a
-// multiple of 8, then the buffers at the offsets the header gives.
+// A front end of the operations layer (src/operations), as the command line is: each
+// operation reads its parameters (request_params.h), calls lapmesh_ops and encodes the answer
+// (JSON, or a binary frame: frames.h). One state per mesh, guarded by its own lock: a second
+// operation on a busy mesh gets 409 instead of waiting. The socket and the connections:
+// transport.h.
 #include "viewer_server.h"
 
+// The library's headers first: the socket headers (through transport.h) define macros such as
+// _res that Eigen's sparse module uses as a name.
+#include <operations/operations.h>
+
 #include <lapmesh/colormap.h>
-#include <lapmesh/curvature.h>
 #include <lapmesh/errors.h>
 #include <lapmesh/io.h>
-#include <lapmesh/laplacian_smoothing.h>
-#include <lapmesh/noise.h>
 #include <lapmesh/shapes.h>
 #include <lapmesh/spectral_reconstruction.h>
 
-#include <CGAL/Simple_cartesian.h>
-#include <CGAL/Surface_mesh.h>
+#include "frames.h"
+#include "request_params.h"
+#include "transport.h"
 
 #include <httplib.h>
 #include <nlohmann/json.hpp>
-
-#include <arpa/inet.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
@@ -48,19 +44,9 @@
 namespace lapmesh_viewer {
 namespace {
 
-using Kernel = CGAL::Simple_cartesian<double>;
-using Mesh = CGAL::Surface_mesh<Kernel::Point_3>;
+using Mesh = lapmesh_ops::Mesh;
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
-namespace LP = lapmesh::parameters;
-
-/// A request the server refuses: HTTP status and a one-line message.
-struct Http_error : std::runtime_error
-{
-  Http_error(int s, const std::string& what) : std::runtime_error(what), status(s) {}
-  int status;
-};
 
 /// Thrown from a progress callback when the client asked to cancel.
 struct Cancelled
@@ -70,369 +56,6 @@ double ms_since(Clock::time_point t0)
 {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
-
-// ---- request parameters -------------------------------------------------------------
-
-/// Reads the members of a JSON object (a POST body) or the query parameters of a GET, with
-/// type and range checks; unknown names are an error (typos must not pass silently).
-class Params
-{
-public:
-  static Params from_body(const std::string& body)
-  {
-    Params p;
-    if(body.find_first_not_of(" \t\r\n") == std::string::npos) return p;
-    try {
-      p.m_json = json::parse(body);
-    } catch(const json::exception&) {
-      throw Http_error(400, "the request body is not valid JSON");
-    }
-    if(!p.m_json.is_object()) throw Http_error(400, "the request body must be a JSON object");
-    return p;
-  }
-  static Params from_query(const httplib::Request& req)
-  {
-    Params p;
-    for(const auto& [key, value] : req.params) {
-      if(p.m_json.contains(key)) throw Http_error(400, "query parameter '" + key + "' given twice");
-      p.m_json[key] = value;
-      p.m_from_query = true;
-    }
-    return p;
-  }
-
-  std::string choice(const std::string& key, const std::string& fallback, std::initializer_list<const char*> allowed)
-  {
-    return choice(key, fallback, std::vector<std::string>(allowed.begin(), allowed.end()));
-  }
-  /// `fallback` when the key is absent; otherwise one of `allowed`, which the error lists.
-  std::string choice(const std::string& key, const std::string& fallback, const std::vector<std::string>& allowed)
-  {
-    const json* v = take(key);
-    if(!v) return fallback;
-    if(!v->is_string()) throw Http_error(400, "'" + key + "' must be a string");
-    const std::string s = v->get<std::string>();
-    std::string list;
-    for(const std::string& a : allowed) {
-      if(s == a) return s;
-      list += (list.empty() ? "" : ", ") + a;
-    }
-    throw Http_error(400, "'" + key + "' must be one of " + list + " (got '" + s.substr(0, 40) + "')");
-  }
-  double number(const std::string& key, double fallback, double lo, double hi)
-  {
-    const json* v = take(key);
-    if(!v) return fallback;
-    double x = 0;
-    if(v->is_number()) {
-      x = v->get<double>();
-    } else if(m_from_query && v->is_string()) {
-      const std::string s = v->get<std::string>();
-      char* end = nullptr;
-      x = std::strtod(s.c_str(), &end);
-      if(s.empty() || *end != '\0') throw Http_error(400, "'" + key + "' must be a number");
-    } else {
-      throw Http_error(400, "'" + key + "' must be a number");
-    }
-    if(!std::isfinite(x) || x < lo || x > hi)
-      throw Http_error(400, "'" + key + "' must be in [" + fmt(lo) + ", " + fmt(hi) + "] (got " + fmt(x) + ")");
-    return x;
-  }
-  long long integer(const std::string& key, std::optional<long long> fallback, long long lo, long long hi)
-  {
-    const json* v = take(key);
-    if(!v) {
-      if(!fallback) throw Http_error(400, "'" + key + "' is required");
-      return *fallback;
-    }
-    long long x = 0;
-    if(v->is_number_integer()) {
-      x = v->get<long long>();
-    } else if(v->is_number_float() && std::isfinite(v->get<double>()) && std::floor(v->get<double>()) == v->get<double>() &&
-              std::abs(v->get<double>()) < 9e15) {
-      x = (long long)v->get<double>();
-    } else if(m_from_query && v->is_string()) {
-      const std::string s = v->get<std::string>();
-      std::size_t used = 0;
-      try {
-        x = std::stoll(s, &used);
-      } catch(const std::exception&) {
-        used = 0;
-      }
-      if(used == 0 || used != s.size()) throw Http_error(400, "'" + key + "' must be an integer");
-    } else {
-      throw Http_error(400, "'" + key + "' must be an integer (got " + v->dump().substr(0, 40) + ")");
-    }
-    if(x < lo || x > hi)
-      throw Http_error(400, "'" + key + "' must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                              "] (got " + std::to_string(x) + ")");
-    return x;
-  }
-  bool boolean(const std::string& key, bool fallback)
-  {
-    const json* v = take(key);
-    if(!v) return fallback;
-    if(v->is_boolean()) return v->get<bool>();
-    if(m_from_query && v->is_string() && (*v == "true" || *v == "false")) return *v == "true";
-    throw Http_error(400, "'" + key + "' must be true or false");
-  }
-  bool has(const std::string& key) const { return m_json.contains(key); }
-  /// The client's id of an operation (echoed in its answer and progress): "" or up to 64 of
-  /// [A-Za-z0-9_-], or a non-negative integer.
-  std::string request_id()
-  {
-    const json* v = take("request_id");
-    if(!v) return "";
-    if(v->is_number_unsigned()) return std::to_string(v->get<unsigned long long>());
-    if(v->is_string()) {
-      const std::string s = v->get<std::string>();
-      if(s.size() <= 64 && s.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-") ==
-                             std::string::npos)
-        return s;
-    }
-    throw Http_error(400, "'request_id' must be up to 64 of A-Z a-z 0-9 _ - or a non-negative integer");
-  }
-  const json* raw(const std::string& key) { return take(key); }
-  /// After reading every parameter: refuses the ones nobody asked for.
-  void finish() const
-  {
-    for(auto it = m_json.begin(); it != m_json.end(); ++it)
-      if(!m_used.count(it.key())) throw Http_error(400, "unknown parameter '" + it.key().substr(0, 40) + "'");
-  }
-
-  static std::string fmt(double x)
-  {
-    std::ostringstream os;
-    os << x;
-    return os.str();
-  }
-
-private:
-  const json* take(const std::string& key)
-  {
-    m_used.insert(key);
-    auto it = m_json.find(key);
-    if(it == m_json.end() || it->is_null()) return nullptr;
-    return &*it;
-  }
-  json m_json = json::object();
-  std::set<std::string> m_used;
-  bool m_from_query = false;
-};
-
-// ---- binary frames -------------------------------------------------------------------
-
-class Frame
-{
-public:
-  template <typename T>
-  void add(const std::string& name, const char* type, const T* data, std::size_t count, int components = 1)
-  {
-    const std::size_t bytes = sizeof(T) * count;
-    m_header["buffers"][name] = {{"type", type}, {"offset", m_data.size()}, {"count", count},
-                                 {"components", components}};
-    m_data.append(reinterpret_cast<const char*>(data), bytes);
-    m_data.append((8 - m_data.size() % 8) % 8, '\0');
-  }
-  json& header() { return m_header; }
-  std::string str() const
-  {
-    std::string h = m_header.dump();
-    h.append((8 - (4 + h.size()) % 8) % 8, ' ');
-    const std::uint32_t len = std::uint32_t(h.size());
-    std::string out(4, '\0');
-    for(int i = 0; i < 4; ++i) out[std::size_t(i)] = char((len >> (8 * i)) & 0xff);  // little-endian
-    out += h;
-    out += m_data;
-    return out;
-  }
-
-private:
-  json m_header = {{"buffers", json::object()}};
-  std::string m_data;
-};
-
-// ---- transport ---------------------------------------------------------------------------
-//
-// httplib parses requests and routes them, but its own accept loop cannot stand up to slow
-// or hostile clients (a fixed pool of 8 threads held by half-sent requests, header lines
-// without a total limit, chunked bodies without a size limit, SO_REUSEPORT on the listening
-// socket). So the server accepts connections itself, gives each its own thread (bounded in
-// number, overall and per client address) and hands httplib a stream that enforces a
-// deadline and a byte budget on every request.
-
-/// httplib's request parser and router, driven one request at a time.
-class Http_router : public httplib::Server
-{
-public:
-  using httplib::Server::process_request;
-};
-
-struct Transport_limits
-{
-  int request_ms, io_ms, keep_alive_ms;
-  std::size_t max_head_bytes, max_body_wire_bytes;
-};
-
-/// One accepted connection; its fd stays open until the entry leaves the connection table,
-/// so that another thread may shut it down (eviction, stop) without hitting a reused fd.
-struct Connection
-{
-  enum class Phase { waiting, reading, handling };
-  enum class Limit { none, head, body, time };
-  int fd = -1;
-  std::string address;
-  std::atomic<Phase> phase{Phase::waiting};
-  std::atomic<long long> phase_since_ns{0};
-  Limit limit = Limit::none;    // what stopped the current request, if anything
-  bool must_close = false;      // the request's body was not read: the next bytes are not a request
-  std::atomic<bool> finished{false};
-  bool evicted = false;  // shut down to make room (connections_mutex)
-  std::thread thread;
-
-  void set_phase(Phase p)
-  {
-    phase = p;
-    phase_since_ns = Clock::now().time_since_epoch().count();
-  }
-};
-
-thread_local Connection* current_connection = nullptr;
-
-/// The stream httplib reads requests from and writes answers to. Each request must arrive
-/// within request_ms of its first byte, with a head of at most max_head_bytes and a body
-/// (as sent, chunk framing included) of at most max_body_wire_bytes; every wait for the
-/// socket is bounded by io_ms.
-class Limited_stream final : public httplib::Stream
-{
-public:
-  Limited_stream(Connection& c, const Transport_limits& l) : m_c(c), m_l(l) {}
-
-  /// Before each request: waits up to keep_alive_ms for its first byte; false when the
-  /// client closed the connection or stayed silent.
-  bool begin_request()
-  {
-    m_c.limit = Connection::Limit::none;
-    m_head_done = false;
-    m_head_bytes = m_body_bytes = 0;
-    m_tail = 0;
-    m_c.set_phase(Connection::Phase::waiting);
-    if(m_pos == m_end && !fill(Clock::now() + std::chrono::milliseconds(m_l.keep_alive_ms))) return false;
-    m_c.set_phase(Connection::Phase::reading);
-    m_deadline = Clock::now() + std::chrono::milliseconds(m_l.request_ms);
-    return true;
-  }
-
-  bool is_readable() const override { return m_pos < m_end || wait(POLLIN, m_l.io_ms); }
-  bool is_writable() const override { return wait(POLLOUT, m_l.io_ms); }
-
-  ssize_t read(char* ptr, std::size_t size) override
-  {
-    if(m_c.limit != Connection::Limit::none) return -1;
-    if(m_pos == m_end && !fill(m_deadline)) {
-      m_c.must_close = true;  // a request cut short: what follows is not a request
-      return m_eof ? 0 : -1;
-    }
-    std::size_t n = std::min(size, m_end - m_pos);
-    // Count what httplib consumes: the head up to its blank line, then the body.
-    for(std::size_t i = 0; i < n && !m_head_done; ++i) {
-      m_tail = (m_tail << 8) | std::uint8_t(m_buf[m_pos + i]);
-      if(++m_head_bytes > m_l.max_head_bytes) return stop(Connection::Limit::head);
-      if((m_tail & 0xffffffffu) == 0x0d0a0d0au) {
-        m_head_done = true;
-        n = i + 1;  // hand over the head alone; the body is counted from the next read
-      }
-    }
-    std::memcpy(ptr, m_buf + m_pos, n);
-    m_pos += n;
-    return ssize_t(n);
-  }
-
-  ssize_t write(const char* ptr, std::size_t size) override
-  {
-    if(!wait(POLLOUT, m_l.io_ms)) return -1;
-    const ssize_t n = ::send(m_c.fd, ptr, size, MSG_NOSIGNAL);
-    return n < 0 ? -1 : n;
-  }
-
-  void get_remote_ip_and_port(std::string& ip, int& port) const override { address_of(true, ip, port); }
-  void get_local_ip_and_port(std::string& ip, int& port) const override { address_of(false, ip, port); }
-  int socket() const override { return m_c.fd; }
-
-private:
-  ssize_t stop(Connection::Limit why)
-  {
-    m_c.limit = why;
-    m_c.must_close = true;
-    return -1;
-  }
-
-  bool wait(short events, int ms) const
-  {
-    pollfd p{m_c.fd, events, 0};
-    int r;
-    do r = ::poll(&p, 1, ms);
-    while(r < 0 && errno == EINTR);
-    return r > 0;
-  }
-
-  /// Refills the buffer, waiting until `deadline` at most (in steps of io_ms).
-  bool fill(Clock::time_point deadline)
-  {
-    m_pos = m_end = 0;
-    for(;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
-      if(left <= 0) {
-        if(m_c.phase != Connection::Phase::waiting) stop(Connection::Limit::time);
-        return false;
-      }
-      if(!wait(POLLIN, int(std::min<long long>(left, m_l.io_ms)))) {
-        if(left <= m_l.io_ms) continue;  // the deadline check above ends it
-        if(m_c.phase != Connection::Phase::waiting) stop(Connection::Limit::time);
-        return false;
-      }
-      const ssize_t n = ::recv(m_c.fd, m_buf, sizeof m_buf, 0);
-      if(n > 0) {
-        m_end = std::size_t(n);
-        if(m_head_done) {
-          m_body_bytes += m_end;
-          if(m_body_bytes > m_l.max_body_wire_bytes) {
-            m_end = 0;
-            stop(Connection::Limit::body);
-            return false;
-          }
-        }
-        return true;
-      }
-      if(n == 0) m_eof = true;
-      if(n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-      return false;
-    }
-  }
-
-  void address_of(bool peer, std::string& ip, int& port) const
-  {
-    sockaddr_storage a{};
-    socklen_t len = sizeof a;
-    ip.clear();
-    port = 0;
-    if((peer ? ::getpeername(m_c.fd, (sockaddr*)&a, &len) : ::getsockname(m_c.fd, (sockaddr*)&a, &len)) != 0) return;
-    char host[NI_MAXHOST], serv[NI_MAXSERV];
-    if(::getnameinfo((sockaddr*)&a, len, host, sizeof host, serv, sizeof serv, NI_NUMERICHOST | NI_NUMERICSERV) == 0) {
-      ip = host;
-      port = std::atoi(serv);
-    }
-  }
-
-  Connection& m_c;
-  const Transport_limits& m_l;
-  char m_buf[4096];
-  std::size_t m_pos = 0, m_end = 0;
-  bool m_eof = false, m_head_done = false;
-  std::size_t m_head_bytes = 0, m_body_bytes = 0;
-  std::uint64_t m_tail = 0;
-  Clock::time_point m_deadline;
-};
 
 // ---- per-mesh state --------------------------------------------------------------------
 
@@ -545,84 +168,6 @@ private:
   Mesh_state& m_s;
 };
 
-/// Eigenbases by (mesh, geometry, Laplacian, vertex area), least recently used first out,
-/// within a byte budget. A basis of m pairs serves every k <= m on the geometry it was
-/// computed from.
-class Basis_cache
-{
-public:
-  explicit Basis_cache(std::size_t budget) : m_budget(budget) {}
-
-  std::shared_ptr<const lapmesh::Spectral_basis> find(const std::string& mesh, long long geometry, lapmesh::Laplacian L,
-                                                      lapmesh::Vertex_area A, Eigen::Index k)
-  {
-    std::lock_guard<std::mutex> g(m_mutex);
-    for(auto it = m_lru.begin(); it != m_lru.end(); ++it) {
-      if(it->mesh == mesh && it->geometry == geometry && it->L == L && it->A == A && it->basis->size() >= k) {
-        m_lru.splice(m_lru.begin(), m_lru, it);
-        return m_lru.front().basis;
-      }
-    }
-    return nullptr;
-  }
-
-  void insert(const std::string& mesh, long long geometry, std::shared_ptr<const lapmesh::Spectral_basis> basis)
-  {
-    const std::size_t bytes = bytes_of(*basis);
-    std::lock_guard<std::mutex> g(m_mutex);
-    m_lru.remove_if([&](const Entry& e) {
-      const bool same = e.mesh == mesh && e.geometry == geometry && e.L == basis->laplacian() && e.A == basis->vertex_area();
-      if(same) m_bytes -= e.bytes;
-      return same;
-    });
-    if(bytes > m_budget) return;  // used for this request only
-    while(!m_lru.empty() && m_bytes + bytes > m_budget) {
-      m_bytes -= m_lru.back().bytes;
-      m_lru.pop_back();
-    }
-    m_lru.push_front({mesh, geometry, basis->laplacian(), basis->vertex_area(), basis, bytes});
-    m_bytes += bytes;
-  }
-
-  /// Drops the bases of `mesh` on geometries other than `keep_a` and `keep_b`: those
-  /// geometries cannot come back.
-  void forget(const std::string& mesh, long long keep_a, long long keep_b)
-  {
-    std::lock_guard<std::mutex> g(m_mutex);
-    m_lru.remove_if([&](const Entry& e) {
-      const bool gone = e.mesh == mesh && e.geometry != keep_a && e.geometry != keep_b;
-      if(gone) m_bytes -= e.bytes;
-      return gone;
-    });
-  }
-
-  json stats()
-  {
-    std::lock_guard<std::mutex> g(m_mutex);
-    return {{"bytes", m_bytes}, {"budget_bytes", m_budget}, {"entries", m_lru.size()}};
-  }
-
-  static std::size_t bytes_of(const lapmesh::Spectral_basis& b)
-  {
-    const std::size_t n = std::size_t(b.num_vertices()), m = std::size_t(b.size());
-    return sizeof(double) * (n * m + m + n);  // eigenvectors, eigenvalues, mass
-  }
-
-private:
-  struct Entry
-  {
-    std::string mesh;
-    long long geometry;
-    lapmesh::Laplacian L;
-    lapmesh::Vertex_area A;
-    std::shared_ptr<const lapmesh::Spectral_basis> basis;
-    std::size_t bytes;
-  };
-  std::mutex m_mutex;
-  std::list<Entry> m_lru;  // most recently used first
-  std::size_t m_bytes = 0, m_budget;
-};
-
 std::string sanitize_id(const std::string& s)
 {
   std::string id;
@@ -634,6 +179,40 @@ std::string sanitize_id(const std::string& s)
 std::vector<double> to_vector(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
 const std::vector<std::string> quantity_names = {"mean", "gaussian", "k1", "k2", "displacement"};
+
+// The viewer's bounds on the work of one request, beyond the server options.
+constexpr double max_lambda = 1e12;            // on the time step as given
+constexpr long long max_seed = 4294967295LL;   // the noise seed (2^32 - 1, as documented)
+
+/// The viewer's spelling of a setting of the operations layer: its JSON parameter, which has
+/// the settings field's name ("lambda", "lambda_unit", "k", "level", ...).
+std::string spelling(const std::string& parameter) { return parameter; }
+
+/// A suggestion in the viewer's spelling: lambda "auto".
+std::string spelling(const lapmesh_ops::Suggestion& s) { return spelling(s.parameter) + " \"" + s.value + "\""; }
+
+/// The one-line "warning" of an answer: each warning with its ways out, "(use A or B)".
+std::string warning_text(const std::vector<lapmesh_ops::Warning>& warnings)
+{
+  std::string text;
+  for(const auto& w : warnings) {
+    text += (text.empty() ? "" : "; ") + w.message;
+    for(std::size_t i = 0; i < w.suggestions.size(); ++i)
+      text += (i == 0 ? " (use " : " or ") + spelling(w.suggestions[i]);
+    if(!w.suggestions.empty()) text += ")";
+  }
+  return text;
+}
+
+/// The name table of `Enum` for /api/info: the default and every value with its description.
+template <typename Enum>
+json choices(Enum fallback)
+{
+  json values = json::array();
+  for(const auto& entry : lapmesh::name_table<Enum>())
+    values.push_back({{"name", entry.name}, {"description", entry.description}});
+  return {{"default", lapmesh::to_string(fallback)}, {"values", values}};
+}
 
 struct Static_file
 {
@@ -699,24 +278,27 @@ struct Server::Impl
   std::vector<std::unique_ptr<Mesh_state>> meshes;
   std::map<std::string, Mesh_state*> by_id;
   std::map<std::string, Static_file> files;  // URL path -> file, fixed at start-up
-  Basis_cache bases;
+  lapmesh_ops::Basis_cache bases;
   std::atomic<long long> last_geometry{0};  // geometry ids handed out
 
-  // Transport (see "transport" above).
-  Http_router http;
-  Transport_limits limits;
-  int listen_fd = -1;
-  std::atomic<bool> stopping{false}, accepting{false};
-  std::thread accept_thread;
-  std::mutex connections_mutex;
-  std::list<std::unique_ptr<Connection>> connections;
-  static constexpr int max_requests_per_connection = 1000;
-
-  Impl(std::vector<Mesh_source> sources, Server_options o) : options(std::move(o)), bases(options.cache_bytes)
+  json cache_stats()
   {
-    limits = {options.request_timeout_ms, options.io_timeout_ms, options.keep_alive_ms, options.max_header_bytes,
-              // the body as sent: chunk framing of reasonably sized chunks fits in the margin
-              2 * options.max_body_bytes + 4096};
+    const lapmesh_ops::Basis_cache::Stats st = bases.stats();
+    return {{"bytes", st.bytes}, {"budget_bytes", st.budget_bytes}, {"entries", st.entries}};
+  }
+
+  Http_router http;
+  Listener listener;  // the socket and the connections (transport.h)
+
+  Impl(std::vector<Mesh_source> sources, Server_options o)
+    : options(std::move(o)),
+      bases(options.cache_bytes),
+      listener(http,
+               {options.request_timeout_ms, options.io_timeout_ms, options.keep_alive_ms, options.max_header_bytes,
+                // the body as sent: chunk framing of reasonably sized chunks fits in the margin
+                2 * options.max_body_bytes + 4096},
+               options.max_connections, options.max_connections_per_address)
+  {
     for(auto& s : sources) {
       if(s.id.empty() || s.id != sanitize_id(s.id) || by_id.count(s.id))
         throw std::invalid_argument("invalid or duplicate mesh id '" + s.id + "'");
@@ -761,7 +343,7 @@ struct Server::Impl
     const Mesh_source& src = s.source;
     try {
       switch(src.kind) {
-        case Mesh_source::Kind::file: lapmesh::io::read_triangle_mesh(src.path, mesh); break;
+        case Mesh_source::Kind::file: mesh = lapmesh_ops::load_mesh(src.path).mesh; break;
         case Mesh_source::Kind::icosphere: lapmesh::make_mesh(lapmesh::icosphere(4, 1.0), mesh); break;
         case Mesh_source::Kind::torus: lapmesh::make_mesh(lapmesh::torus(96, 48, 1.0, 0.4), mesh); break;
         case Mesh_source::Kind::bumpy_sphere: lapmesh::make_mesh(lapmesh::bumpy_sphere(5), mesh); break;
@@ -774,7 +356,7 @@ struct Server::Impl
                               std::to_string(options.max_vertices));
     s.original = mesh;
     s.current = std::move(mesh);
-    s.triangles = lapmesh::io::mesh_arrays(s.current).second;
+    s.triangles = lapmesh_ops::triangles(s.current);
     s.version = 1;
     s.geometry = 0;
     s.loaded = true;
@@ -799,15 +381,7 @@ struct Server::Impl
     return Busy_guard(s.lock, false);
   }
 
-  lapmesh::Vertex_vectors positions(const Mesh_state& s) const { return lapmesh::io::mesh_arrays(s.current).first; }
-
-  void set_positions(Mesh_state& s, const Eigen::Ref<const Eigen::MatrixXd>& P)
-  {
-    for(Mesh::Vertex_index v : s.current.vertices()) {
-      const Eigen::Index i = Eigen::Index(std::size_t(v));
-      s.current.point(v) = Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2));
-    }
-  }
+  static lapmesh::Vertex_vectors positions(const Mesh_state& s) { return lapmesh_ops::positions(s.current); }
 
   /// After a change of the geometry: curvatures are stale, show the displacement from the input.
   void geometry_changed(Mesh_state& s, const std::string& what)
@@ -815,20 +389,9 @@ struct Server::Impl
     ++s.version;
     s.geometry = ++last_geometry;
     bases.forget(s.source.id, 0, s.geometry);  // the previous geometry is gone unless it was the loaded one
-    const lapmesh::Vertex_vectors P = positions(s), P0 = lapmesh::io::mesh_arrays(s.original).first;
-    const Eigen::VectorXd d = (P - P0).rowwise().norm();
     s.scalars.clear();
-    s.scalars["displacement"] = to_vector(d);
+    s.scalars["displacement"] = lapmesh_ops::displacement(s.original, s.current);
     s.scalar_info = {{"source", what}};
-  }
-
-  static std::function<void(int, int)> smoothing_progress(Mesh_state& s)
-  {
-    return [&s](int done, int total) {
-      s.done = done;
-      s.total = total;
-      if(s.cancel) throw Cancelled{};
-    };
   }
 
   // ---- operations (s.mutex held) ----
@@ -847,17 +410,18 @@ struct Server::Impl
 
   json op_curvature(Mesh_state& s, Params& p)
   {
-    const std::string lap = p.choice("laplacian", "cotangent", {"cotangent", "uniform"});
-    const std::string area = p.choice("area", "barycentric", {"barycentric", "voronoi", "mixed"});
+    lapmesh_ops::Curvature_settings settings;
+    settings.laplacian = p.option("laplacian", settings.laplacian);
+    settings.area = p.option("area", settings.area);
     p.finish();
     s.set_stage("curvature");
-    const lapmesh::Vertex_curvatures c = lapmesh::vertex_curvatures<CGAL::Parallel_if_available_tag>(
-      s.current, LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap))));
+    const lapmesh::Vertex_curvatures c = lapmesh_ops::curvature(s.current, settings);
     s.scalars.clear();
     s.scalars["mean"] = to_vector(c.mean);
     s.scalars["gaussian"] = to_vector(c.gaussian);
     s.scalars["k1"] = to_vector(c.k1);
     s.scalars["k2"] = to_vector(c.k2);
+    const std::string lap = lapmesh::to_string(settings.laplacian), area = lapmesh::to_string(settings.area);
     s.scalar_info = {{"source", "curvature"}, {"laplacian", lap}, {"area", area}};
     return {{"laplacian", lap}, {"area", area}};
   }
@@ -865,125 +429,90 @@ struct Server::Impl
   json op_reconstruct(Mesh_state& s, Params& p)
   {
     const long long n = (long long)num_vertices(s.current);
-    const long long kmax = std::min<long long>(n, options.max_k);
-    const long long k = p.integer("k", std::nullopt, 1, kmax);
-    const std::string lap = p.choice("laplacian", "cotangent", {"cotangent", "uniform"});
-    const std::string area = p.choice("area", "barycentric", {"barycentric", "voronoi", "mixed"});
+    lapmesh_ops::Reconstruct_settings settings;
+    settings.k = p.integer("k", std::nullopt, 1, std::min<long long>(n, options.max_k));
+    settings.laplacian = p.option("laplacian", settings.laplacian);
+    settings.area = p.option("area", settings.area);
     p.finish();
-    const auto L = *lapmesh::parse_laplacian(lap);
-    const auto A = *lapmesh::parse_vertex_area(area);
-    std::shared_ptr<const lapmesh::Spectral_basis> basis = bases.find(s.source.id, s.geometry, L, A, k);
+    std::shared_ptr<const lapmesh::Spectral_basis> basis =
+      bases.find(s.source.id, s.geometry, settings.laplacian, settings.area, settings.k);
     const bool cached = basis != nullptr;
     if(!cached) {
       s.set_stage("eigenpairs");
-      auto progress = [&s](const lapmesh::Spectral_progress& pr) {
+      settings.progress = [&s](const lapmesh::Spectral_progress& pr) {
         s.done = pr.operations;
         s.set_stage(pr.stage);
         if(s.cancel) throw Cancelled{};
       };
-      basis = std::make_shared<const lapmesh::Spectral_basis>(lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-        s.current, k, LP::spectral_progress(progress, LP::vertex_area(A, LP::laplacian(L)))));
-      bases.insert(s.source.id, s.geometry, basis);
     }
-    const Eigen::MatrixXd R = basis->reconstruct(positions(s), k);
-    const bool split = basis->splits_eigenspace(k);
-    json out = {{"k", k}, {"laplacian", lap}, {"area", area}, {"basis_size", basis->size()}, {"basis_cached", cached},
-                {"eigenvalue_k_minus_1", basis->eigenvalues()[k - 1]}};
-    if(split)
-      out["warning"] = "lambda_" + std::to_string(k - 1) + " and lambda_" + std::to_string(k) +
-                       " agree to 1e-8 relative: the reconstruction depends on the basis chosen inside that eigenspace";
-    set_positions(s, R);
+    const lapmesh_ops::Reconstruction r = lapmesh_ops::reconstruct(s.current, settings, basis);
+    if(!cached) bases.insert(s.source.id, s.geometry, r.basis);
+    json out = {{"k", settings.k}, {"laplacian", lapmesh::to_string(settings.laplacian)},
+                {"area", lapmesh::to_string(settings.area)}, {"basis_size", r.basis->size()},
+                {"basis_cached", cached}, {"eigenvalue_k_minus_1", r.eigenvalue_k_minus_1}};
+    if(!r.warnings.empty()) out["warning"] = warning_text(r.warnings);
+    lapmesh_ops::set_positions(s.current, r.positions);
     geometry_changed(s, "reconstruct");
-    out["cache"] = bases.stats();
+    out["cache"] = cache_stats();
     return out;
   }
 
   json op_smooth(Mesh_state& s, Params& p)
   {
-    const std::string scheme = p.choice("scheme", "implicit", {"explicit", "implicit", "conformal"});
-    const json* lambda_json = p.raw("lambda");
-    bool lambda_auto = !lambda_json || (lambda_json->is_string() && *lambda_json == "auto");
-    double lambda_value = 0;
-    if(!lambda_auto) {
-      if(!lambda_json->is_number()) throw Http_error(400, "'lambda' must be a positive number or \"auto\"");
-      lambda_value = lambda_json->get<double>();
-      if(!(lambda_value > 0) || !std::isfinite(lambda_value) || lambda_value > 1e12)
-        throw Http_error(400, "'lambda' must be a positive finite time step (got " + lambda_json->dump() + ")");
+    lapmesh_ops::Smooth_settings settings;
+    settings.scheme = p.option("scheme", settings.scheme);
+    // "auto" or a number: its range is the operations layer's check (with the limits below).
+    const json* lambda = p.raw("lambda");
+    if(lambda && !(lambda->is_string() && *lambda == "auto")) {
+      if(!lambda->is_number()) throw Http_error(400, "'lambda' must be a positive number or \"auto\"");
+      settings.lambda.automatic = false;
+      settings.lambda.value = lambda->get<double>();
     }
-    std::string unit = p.choice("lambda_unit", "absolute", {"absolute", "edge2", "bound"});
-    const long long iterations = p.integer("iterations", 1, 1, options.max_iterations);
-    const std::string lap = p.choice("laplacian", "cotangent", {"cotangent", "uniform"});
-    const std::string area = p.choice("area", "barycentric", {"barycentric", "voronoi", "mixed"});
-    const bool fixed_operator = p.boolean("fixed_operator", false);
-    const bool restore_volume = p.boolean("restore_volume", false);
-    const bool restore_area = p.boolean("restore_area", false);
-    const bool fix_boundary = p.boolean("fix_boundary", true);
+    settings.lambda.unit = p.option("lambda_unit", settings.lambda.unit);
+    settings.iterations = p.integer("iterations", 1, 1, options.max_iterations);
+    settings.laplacian = p.option("laplacian", settings.laplacian);
+    settings.area = p.option("area", settings.area);
+    settings.fixed_operator = p.boolean("fixed_operator", false);
+    settings.restore_volume = p.boolean("restore_volume", false);
+    settings.restore_area = p.boolean("restore_area", false);
+    settings.fix_boundary = p.boolean("fix_boundary", true);
     p.finish();
+    const lapmesh_ops::Smoothing_limits limits{options.max_iterations, max_lambda};
+    lapmesh_ops::check(settings, limits);  // before the mesh is copied or anything computed
 
-    const auto sch = *lapmesh::parse_smoothing_scheme(scheme);  // p.choice checked the name
-    const auto base = LP::fix_boundary(
-      fix_boundary, LP::vertex_area(*lapmesh::parse_vertex_area(area), LP::laplacian(*lapmesh::parse_laplacian(lap))));
-    s.set_stage("time step");
-    // One bound for the explicit scheme, as the CLI computes it: explicit_stability_bound() on the
-    // input's free vertices (the smoother's report may hold a cheaper Gershgorin lower bound).
-    const bool explicit_scheme = sch == lapmesh::Smoothing_scheme::explicit_euler;
-    const double bound = explicit_scheme ? lapmesh::explicit_stability_bound(s.current, base)
-                                         : std::numeric_limits<double>::quiet_NaN();
-    const auto step_unit = *lapmesh::parse_time_step_unit(unit);
-    double lambda = 0;
-    if(lambda_auto)
-      lambda = explicit_scheme ? lapmesh::automatic_explicit_time_step(bound)
-                               : lapmesh::automatic_time_step(s.current, sch, base);
-    else
-      lambda = explicit_scheme && step_unit == lapmesh::Time_step_unit::stability_bound
-                 ? lambda_value * bound
-                 : lapmesh::time_step(s.current, lambda_value, step_unit, base);
-    s.total = iterations;
+    settings.progress = [&s](int done, int total) {
+      s.done = done;
+      s.total = total;
+      if(s.cancel) throw Cancelled{};
+    };
+    s.total = settings.iterations;
     s.set_stage("smoothing");
-    Mesh work = s.current;  // a cancelled or failed run leaves the mesh as it was
-    const auto np =
-      LP::progress_callback(smoothing_progress(s), LP::restore_area(restore_area, LP::restore_volume(
-                                                                                 restore_volume, LP::fixed_operator(fixed_operator, base))))
-        .number_of_iterations(unsigned(iterations));
-    lapmesh::Smoothing_report report;
-    switch(sch) {
-      case lapmesh::Smoothing_scheme::explicit_euler:
-        report = lapmesh::smooth_laplacian_explicit<CGAL::Parallel_if_available_tag>(work, lambda, np);
-        break;
-      case lapmesh::Smoothing_scheme::implicit_euler:
-        report = lapmesh::smooth_laplacian_implicit<CGAL::Parallel_if_available_tag>(work, lambda, np);
-        break;
-      default: report = lapmesh::smooth_conformal_flow<CGAL::Parallel_if_available_tag>(work, lambda, np);
-    }
-    s.current = std::move(work);
-    json out = {{"scheme", scheme}, {"lambda", lambda}, {"iterations", report.iterations},
-                {"free_vertices", report.free_vertices}, {"laplacian", lap}, {"area", area},
-                {"fixed_operator", fixed_operator}, {"restore_volume", restore_volume}, {"restore_area", restore_area},
-                {"fix_boundary", fix_boundary}};
-    if(explicit_scheme) out["stability_bound"] = bound;
-    if(explicit_scheme && lambda > bound)
-      out["warning"] = "lambda " + Params::fmt(lambda) + " exceeds the explicit stability bound " +
-                       Params::fmt(bound) + " (use lambda \"auto\" or lambda_unit \"bound\")";
+    const lapmesh_ops::Smooth_result r = lapmesh_ops::smooth(s.current, settings, limits);
+    const bool explicit_scheme = settings.scheme == lapmesh::Smoothing_scheme::explicit_euler;
+    json out = {{"scheme", lapmesh::to_string(settings.scheme)}, {"lambda", r.lambda},
+                {"iterations", r.report.iterations}, {"free_vertices", r.report.free_vertices},
+                {"laplacian", lapmesh::to_string(settings.laplacian)}, {"area", lapmesh::to_string(settings.area)},
+                {"fixed_operator", settings.fixed_operator}, {"restore_volume", settings.restore_volume},
+                {"restore_area", settings.restore_area}, {"fix_boundary", settings.fix_boundary}};
+    if(explicit_scheme) out["stability_bound"] = r.stability_bound;
+    if(!r.warnings.empty()) out["warning"] = warning_text(r.warnings);
     geometry_changed(s, "smooth");
     return out;
   }
 
   json op_noise(Mesh_state& s, Params& p)
   {
-    const double level = p.number("level", 0.1, 0.0, 10.0);
-    const long long seed = p.integer("seed", 0, 0, 4294967295LL);
-    const std::string scale = p.choice("scale", "mean-edge", {"mean-edge", "bbox"});
-    const std::string direction = p.choice("direction", "isotropic", {"isotropic", "normal"});
+    lapmesh_ops::Noise_settings settings;
+    settings.level = p.number("level", 0.1, 0.0, 10.0);
+    settings.seed = std::uint64_t(p.integer("seed", 0, 0, max_seed));
+    settings.scale = p.option("scale", settings.scale);
+    settings.direction = p.option("direction", settings.direction);
     p.finish();
     s.set_stage("noise");
-    const double sigma = lapmesh::add_noise(
-      s.current, level,
-      LP::noise_direction(direction == "normal" ? lapmesh::Noise_direction::normal : lapmesh::Noise_direction::isotropic,
-                          LP::noise_scale(scale == "bbox" ? lapmesh::Noise_scale::bounding_box_diagonal
-                                                          : lapmesh::Noise_scale::mean_edge_length,
-                                          CGAL::parameters::random_seed(unsigned(seed)))));
+    const double sigma = lapmesh_ops::add_noise(s.current, settings);
     geometry_changed(s, "noise");
-    return {{"level", level}, {"seed", seed}, {"scale", scale}, {"direction", direction}, {"sigma", sigma}};
+    return {{"level", settings.level}, {"seed", settings.seed}, {"scale", lapmesh::to_string(settings.scale)},
+            {"direction", lapmesh::to_string(settings.direction)}, {"sigma", sigma}};
   }
 
   // ---- reads ----
@@ -1015,9 +544,7 @@ struct Server::Impl
     const std::string fallback = s.scalars.count("mean") ? "mean" : s.scalars.empty() ? "" : s.scalars.begin()->first;
     // The fallback may be empty (no values yet); a given quantity must be a named one.
     c.quantity = p.choice("quantity", fallback, quantity_names);
-    std::vector<std::string> colormaps;
-    for(const auto& n : lapmesh::colormap_names()) colormaps.push_back(n.name);
-    c.colormap = p.choice("colormap", "jet", colormaps);
+    c.colormap = lapmesh::to_string(p.option("colormap", lapmesh::Colormap::jet));
     c.mode = p.choice("range", "auto", {"auto", "percentile", "symmetric", "manual"});
     c.clip = p.number("clip", c.mode == "percentile" ? 1.0 : 0.0, 0.0, 49.9);
     const bool manual = c.mode == "manual";
@@ -1141,6 +668,12 @@ struct Server::Impl
       f();
     } catch(const Http_error& e) {
       send_error(res, e.status, e.what());
+    } catch(const lapmesh::Parameter_error& e) {
+      // A setting the operations layer refused, named as the request names it.
+      std::string what = "'" + spelling(e.parameter()) + "' " + e.what();
+      if(!e.suggested_value().empty())
+        what += " (use " + spelling(lapmesh_ops::Suggestion{e.parameter(), e.suggested_value()}) + ")";
+      send_error(res, 400, what);
     } catch(const Cancelled&) {
       send_error(res, 409, "cancelled");
     } catch(const lapmesh::Mesh_error& e) {
@@ -1160,184 +693,11 @@ struct Server::Impl
     }
   }
 
-  // ---- connections ----
-
-  void accept_loop()
-  {
-    accepting = true;
-    while(!stopping) {
-      pollfd p{listen_fd, POLLIN, 0};
-      const int r = ::poll(&p, 1, 100);  // wakes up to see `stopping`
-      if(r <= 0) {
-        reap();
-        continue;
-      }
-      sockaddr_storage a{};
-      socklen_t len = sizeof a;
-      const int fd = ::accept4(listen_fd, (sockaddr*)&a, &len, SOCK_CLOEXEC);
-      if(fd < 0) {
-        if(errno == EMFILE || errno == ENFILE) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-        continue;
-      }
-      char host[NI_MAXHOST] = "?";
-      ::getnameinfo((sockaddr*)&a, len, host, sizeof host, nullptr, 0, NI_NUMERICHOST);
-      admit(fd, host);
-    }
-    accepting = false;
-  }
-
-  /// Joins the threads of finished connections (connections_mutex held).
-  void reap_locked()
-  {
-    for(auto it = connections.begin(); it != connections.end();) {
-      if((*it)->finished) {
-        if((*it)->thread.joinable()) (*it)->thread.join();
-        it = connections.erase(it);
-      } else {
-        ++it;
-      }
-    }
-  }
-  void reap()
-  {
-    std::lock_guard<std::mutex> g(connections_mutex);
-    reap_locked();
-  }
-
-  /// A connection waiting for (the rest of) a request this long counts as stalled: it may be
-  /// closed to make room. Shorter waits are spared (a request in flight, a loaded machine).
-  static constexpr long long stalled_after_ns = 1'000'000'000;
-
-  /// Gives a new connection its thread, within the limits: over a limit, the connection
-  /// (of this address, or any) that has stalled longest is closed to make room; if none has
-  /// stalled, the newcomer gets 503.
-  void admit(int fd, const std::string& address)
-  {
-    std::lock_guard<std::mutex> g(connections_mutex);
-    reap_locked();
-    int total = 0, same = 0;
-    Connection *oldest_same = nullptr, *oldest_any = nullptr;
-    auto older = [](Connection* a, Connection* b) { return !a || b->phase_since_ns < a->phase_since_ns; };
-    const long long now = Clock::now().time_since_epoch().count();
-    for(auto& c : connections) {
-      if(c->finished || c->fd < 0 || c->evicted) continue;
-      // A connection its client has closed is about to end (its thread may just not have run
-      // yet on a loaded machine): it does not count.
-      pollfd p{c->fd, POLLRDHUP, 0};
-      if(::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR))) continue;
-      ++total;
-      const bool idle = c->phase != Connection::Phase::handling && now - c->phase_since_ns >= stalled_after_ns;
-      if(c->address == address) {
-        ++same;
-        if(idle && older(oldest_same, c.get())) oldest_same = c.get();
-      }
-      if(idle && older(oldest_any, c.get())) oldest_any = c.get();
-    }
-    Connection* victim = nullptr;
-    bool refuse = false;
-    if(same >= options.max_connections_per_address) {
-      victim = oldest_same;
-      refuse = !victim;
-    } else if(total >= options.max_connections) {
-      victim = oldest_any;
-      refuse = !victim;
-    }
-    if(refuse) {
-      static const std::string body = R"({"error": "too many connections"})";
-      const std::string answer = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
-                                 "Connection: close\r\nContent-Length: " +
-                                 std::to_string(body.size()) + "\r\n\r\n" + body;
-      [[maybe_unused]] const ssize_t n = ::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-      ::close(fd);
-      return;
-    }
-    if(victim) {
-      victim->evicted = true;
-      ::shutdown(victim->fd, SHUT_RDWR);  // its thread sees end of file and finishes
-    }
-    auto c = std::make_unique<Connection>();
-    c->fd = fd;
-    c->address = address;
-    c->set_phase(Connection::Phase::waiting);
-    Connection* raw = c.get();
-    connections.push_back(std::move(c));
-    raw->thread = std::thread([this, raw] {
-      serve(*raw);
-      raw->finished = true;
-    });
-  }
-
-  void serve(Connection& c)
-  {
-    current_connection = &c;
-    Limited_stream stream(c, limits);
-    for(int i = 0; i < max_requests_per_connection && !stopping; ++i) {
-      if(!stream.begin_request()) break;
-      bool closed = false;
-      const bool ok = http.process_request(stream, i + 1 == max_requests_per_connection, closed, nullptr);
-      if(!ok && c.limit != Connection::Limit::none) {
-        // httplib gives up without an answer when the request line itself is cut short.
-        const int status = c.limit == Connection::Limit::head ? 431 : c.limit == Connection::Limit::body ? 413 : 408;
-        const std::string body = R"({"error": "request )" +
-                                 std::string(status == 431 ? "header too large" : status == 413 ? "body too large" : "timed out") +
-                                 "\"}";
-        const std::string answer = "HTTP/1.1 " + std::to_string(status) +
-                                   " Refused\r\nContent-Type: application/json\r\nConnection: close\r\nContent-Length: " +
-                                   std::to_string(body.size()) + "\r\n\r\n" + body;
-        stream.write(answer.data(), answer.size());
-      }
-      if(!ok || closed || c.must_close) break;
-    }
-    if(c.must_close) drain(c.fd);
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      ::close(c.fd);  // under the lock: nobody shuts down this number once it may be reused
-      c.fd = -1;
-    }
-    current_connection = nullptr;
-  }
-
-  /// Before closing a connection whose request was not read to its end: stop sending, then
-  /// read (and drop) what the client still sends for a short, bounded while, so that the
-  /// answer is not lost to a reset.
-  void drain(int fd)
-  {
-    ::shutdown(fd, SHUT_WR);
-    char buf[16384];
-    std::size_t total = 0;
-    const auto until = Clock::now() + std::chrono::milliseconds(500);
-    while(total < (std::size_t(4) << 20) && Clock::now() < until) {
-      pollfd p{fd, POLLIN, 0};
-      if(::poll(&p, 1, 100) <= 0) continue;
-      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-      if(n <= 0) break;
-      total += std::size_t(n);
-    }
-  }
-
   void stop()
   {
-    stopping = true;
-    if(accept_thread.joinable()) accept_thread.join();
-    for(int i = 0; i < 50 && accepting; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    if(listen_fd >= 0) {
-      ::close(listen_fd);
-      listen_fd = -1;
-    }
+    listener.stop_accepting();
     for(auto& s : meshes) s->cancel = true;
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      for(auto& c : connections)
-        if(c->fd >= 0) ::shutdown(c->fd, SHUT_RDWR);
-    }
-    // Connection threads only take connections_mutex briefly: join outside it.
-    std::list<std::unique_ptr<Connection>> all;
-    {
-      std::lock_guard<std::mutex> g(connections_mutex);
-      all.swap(connections);
-    }
-    for(auto& c : all)
-      if(c->thread.joinable()) c->thread.join();
+    listener.close_connections();
   }
 
   static bool has_body(const httplib::Request& req)
@@ -1450,9 +810,18 @@ struct Server::Impl
                           {"request_timeout_ms", options.request_timeout_ms},
                           {"max_connections", options.max_connections},
                           {"max_connections_per_address", options.max_connections_per_address}}},
-                        {"cache", bases.stats()},
+                        {"cache", cache_stats()},
                         {"quantities", quantity_names},
-                        {"colormaps", {"jet", "viridis", "coolwarm", "gray"}}});
+                        {"colormaps", lapmesh::names<lapmesh::Colormap>()},
+                        // The choices of the operations (the page's dropdowns), by parameter.
+                        {"choices",
+                         {{"laplacian", choices(lapmesh_ops::Curvature_settings{}.laplacian)},
+                          {"area", choices(lapmesh_ops::Curvature_settings{}.area)},
+                          {"scheme", choices(lapmesh_ops::Smooth_settings{}.scheme)},
+                          {"lambda_unit", choices(lapmesh_ops::Time_step{}.unit)},
+                          {"scale", choices(lapmesh_ops::Noise_settings{}.scale)},
+                          {"direction", choices(lapmesh_ops::Noise_settings{}.direction)},
+                          {"colormap", choices(lapmesh::Colormap::jet)}}}});
       });
     });
     http.Get("/api/meshes", [this](const httplib::Request&, httplib::Response& res) {
@@ -1595,67 +964,18 @@ void Server::preload()
   }
 }
 
-int Server::bind()
-{
-  if(m->listen_fd >= 0) throw std::runtime_error("the server is bound already");
-  const std::string& host = m->options.host;
-  const std::string where = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" +
-                            std::to_string(m->options.port);
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
-  addrinfo* found = nullptr;
-  if(const int rc = ::getaddrinfo(host.c_str(), std::to_string(m->options.port).c_str(), &hints, &found); rc != 0)
-    throw std::runtime_error("cannot bind to " + where + ": " + ::gai_strerror(rc));
-  int error = 0;
-  for(addrinfo* a = found; a && m->listen_fd < 0; a = a->ai_next) {
-    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
-    if(fd < 0) {
-      error = errno;
-      continue;
-    }
-    // SO_REUSEADDR only (a restart may bind over connections in TIME_WAIT); never
-    // SO_REUSEPORT, which would let a second server share this port and its requests.
-    const int yes = 1;
-    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-    if(::bind(fd, a->ai_addr, a->ai_addrlen) == 0 && ::listen(fd, 64) == 0) {
-      m->listen_fd = fd;
-    } else {
-      error = errno;
-      ::close(fd);
-    }
-  }
-  ::freeaddrinfo(found);
-  if(m->listen_fd < 0)
-    throw std::runtime_error("cannot bind to " + where + ": " + std::strerror(error) +
-                             (error == EADDRINUSE ? " (another server listens there: try another --port, or none for a free one)"
-                                                  : ""));
-  sockaddr_storage a{};
-  socklen_t len = sizeof a;
-  ::getsockname(m->listen_fd, (sockaddr*)&a, &len);
-  return ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
-}
+int Server::bind() { return m->listener.bind(m->options.host, m->options.port); }
 
 void Server::listen()
 {
-  if(m->listen_fd < 0) bind();
-  m->accept_loop();
+  if(!m->listener.bound()) bind();
+  m->listener.accept_loop();
 }
 
 int Server::start()
 {
-  int port = 0;
-  {
-    sockaddr_storage a{};
-    socklen_t len = sizeof a;
-    if(m->listen_fd < 0) port = bind();
-    else if(::getsockname(m->listen_fd, (sockaddr*)&a, &len) == 0)
-      port = ntohs(a.ss_family == AF_INET6 ? ((sockaddr_in6*)&a)->sin6_port : ((sockaddr_in*)&a)->sin_port);
-  }
-  m->accepting = true;
-  m->accept_thread = std::thread([this] { m->accept_loop(); });
-  return port;
+  if(!m->listener.bound()) bind();
+  return m->listener.start();
 }
 
 void Server::stop() { m->stop(); }

@@ -506,6 +506,30 @@ const fieldOf = {
   level: ['noise-level'], seed: ['noise-seed'], scale: ['noise-scale'], direction: ['noise-direction'],
   colormap: ['colormap'], range: ['range-mode'], clip: ['clip'], min: ['range-min'], max: ['range-max'], shading: ['shading'],
 };
+/** The dropdowns of the operations' choices, by the parameter they set: their values, their
+ *  descriptions and the default selection are the server's name tables (GET /api/info). */
+const choiceFields = {
+  laplacian: ['curv-laplacian', 'rec-laplacian', 'sm-laplacian'], area: ['curv-area', 'rec-area', 'sm-area'],
+  scheme: ['sm-scheme'], lambda_unit: ['sm-unit'], scale: ['noise-scale'], direction: ['noise-direction'],
+  colormap: ['colormap'],
+};
+function fillChoices(choices) {
+  for (const [key, ids] of Object.entries(choiceFields)) {
+    const table = choices[key];
+    if (!table) throw new Error(`the server offers no choices for '${key}'`);
+    for (const id of ids) {
+      const select = $(id);
+      select.replaceChildren();
+      for (const v of table.values) {
+        const o = new Option(v.name, v.name, false, v.name === table.default);
+        o.title = v.description;
+        select.add(o);
+      }
+      select.value = table.default;
+    }
+  }
+}
+
 function applyUrlFields() {
   for (const [key, ids] of Object.entries(fieldOf)) {
     if (!urlParams.has(key)) continue;
@@ -520,8 +544,9 @@ function applyUrlFields() {
 }
 
 async function main() {
-  applyUrlFields();
   resize();
+  await guard(async () => fillChoices((await getJson('/api/info')).choices));
+  applyUrlFields();
   await guard(async () => {
     const maps = await getJson('/api/colormaps');
     state.colormaps = Object.fromEntries(Object.entries(maps.maps).map(([k, v]) => [k, Uint8Array.from(v)]));
