@@ -16,8 +16,12 @@
 #ifndef LAPMESH_DENOISING_H
 #define LAPMESH_DENOISING_H
 
+#include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/laplacian_assembly.h>
 #include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/shape_restoration.h>
 #include <lapmesh/internal/smoothing_engine.h>
+#include <lapmesh/internal/stability_bound.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/noise.h>
 #include <lapmesh/parameters.h>
@@ -210,8 +214,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
   study.records.reserve(total_runs * std::size_t(s.iterations + 1));
   std::size_t runs_done = 0;
   const std::vector<char> no_constraints(std::size_t(t.num_vertices), 0);
-  std::vector<char> free_mask(std::size_t(t.num_vertices));
-  for(Index i = 0; i < t.num_vertices; ++i) free_mask[i] = !t.on_boundary[i];
+  const std::vector<char> free_mask = free_vertex_mask(t, true);
 
   for(double level : s.noise_levels) {
     Positions noisy = clean;
@@ -226,9 +229,8 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
         try {
           Laplacian_pencil pencil;
           assemble_pencil(t, noisy, lap, s.area, false, pencil);
-          if(lap == Laplacian::cotangent) require_positive_mass(pencil.mass, s.area);
-          const double mu = largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
-          bound = mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+          require_positive_mass(lap, pencil.mass, s.area);
+          bound = explicit_stability_bound(pencil, free_mask, false);
         } catch(const std::exception& e) {
           bound_error = std::string("the noisy mesh: ") + e.what();
         }
@@ -240,11 +242,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           base.laplacian = lap;
           base.time_step = tau;
           base.stability_bound = bound;
-          switch(s.unit) {
-            case Time_step_unit::absolute: base.lambda = tau; break;
-            case Time_step_unit::mean_edge_length_squared: base.lambda = lap == Laplacian::uniform ? tau : tau * h * h; break;
-            case Time_step_unit::stability_bound: base.lambda = tau * bound; break;
-          }
+          base.lambda = lambda_of_time_step(tau, s.unit, lap, [&] { return h; }, [&] { return bound; });
           Denoising_record r0 = base;
           r0.iteration = 0;
           r0.deviation = noisy_deviation;

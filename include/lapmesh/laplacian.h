@@ -13,8 +13,10 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/laplacian_assembly.h>
 #include <lapmesh/internal/mesh_extraction.h>
 #include <lapmesh/parameters.h>
+#include <lapmesh/types.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -22,69 +24,6 @@
 #include <string>
 
 namespace lapmesh {
-
-/// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (doc/conventions.md).
-struct Laplacian_pencil
-{
-  Eigen::SparseMatrix<double> stiffness;  ///< S: C (cotangent) or W (uniform); negative semidefinite
-  Eigen::VectorXd mass;                   ///< diagonal of M: A_i (cotangent) or degree (uniform)
-};
-
-namespace internal {
-
-/// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
-/// matrix with t's pattern (repeated assembly while smoothing) only the values are written.
-inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
-                            Vertex_area area, bool parallel, Laplacian_pencil& out)
-{
-  if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
-     !out.stiffness.isCompressed())
-    make_pattern_matrix(t, out.stiffness);
-  if(laplacian == Laplacian::uniform) {
-    fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
-    out.mass.resize(t.num_vertices);
-    for(Index v = 0; v < t.num_vertices; ++v) out.mass[v] = t.degree(v);
-    return;
-  }
-  Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
-  out.mass = gather_corner_sums(t, g.corner_area, parallel);
-}
-
-inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)
-{
-  Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  return gather_corner_sums(t, g.corner_area, parallel);
-}
-
-/// Throws Mesh_error naming the first vertex with a non-positive mass. The spectral and
-/// smoothing solvers need M positive definite; the Voronoi area can fail this on obtuse meshes.
-inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
-{
-  for(Eigen::Index i = 0; i < mass.size(); ++i)
-    if(!(mass[i] > 0))
-      throw Mesh_error("vertex " + std::to_string(i) + " has a non-positive " + to_string(area) +
-                         " area (" + std::to_string(mass[i]) +
-                         "); the mass matrix must be positive: use the mixed or barycentric area",
-                       Mesh_error::Element::vertex, i);
-}
-
-template <typename NamedParameters>
-Laplacian choose_laplacian(const NamedParameters& np)
-{
-  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::laplacian),
-                                            Laplacian::cotangent);
-}
-template <typename NamedParameters>
-Vertex_area choose_vertex_area(const NamedParameters& np)
-{
-  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::vertex_area),
-                                            Vertex_area::barycentric);
-}
-
-} // namespace internal
 
 /// \ingroup PkgLapmeshOperators
 /// @brief assembles the stiffness matrix and the lumped mass of a Laplacian of `tm`.

@@ -18,15 +18,18 @@
 #define LAPMESH_LAPLACIAN_SMOOTHING_H
 
 #include <lapmesh/internal/smoothing_engine.h>
+#include <lapmesh/internal/stability_bound.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/parameters.h>
 
 #include <CGAL/boost/graph/named_params_helper.h>
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <type_traits>
+#include <vector>
 
 namespace lapmesh {
 
@@ -56,7 +59,7 @@ LAPMESH_NAMED_PARAMETER(use_cholmod)
 /// preconditioned by the previous Cholesky factor (to a relative residual of 1e-12) and
 /// refactorise only when CG needs more than 10 iterations (after the first such step, every
 /// remaining step is refactorised directly). It pays where the factorisation is expensive
-/// relative to a solve (regular grids: 1.2x on a 250k torus); on Loop-subdivided scans it does not.
+/// relative to a solve (regular grids); on Loop-subdivided scans it does not.
 LAPMESH_NAMED_PARAMETER(reuse_factorization)
 
 namespace internal {
@@ -71,6 +74,18 @@ struct has_factor<Solver, std::void_t<decltype(std::declval<Solver&>().factor(
                             std::declval<const typename Solver::Matrix&>(), std::declval<typename Solver::NT&>()))>>
   : std::true_type
 {};
+
+/// `vertex_is_constrained_map` read into one flag per vertex (all 0 without the map).
+template <typename VertexRange, typename NamedParameters>
+std::vector<char> constrained_vertices(const VertexRange& vertices, const NamedParameters& np)
+{
+  std::vector<char> fixed(vertices.size(), 0);
+  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
+    auto vcm = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_is_constrained);
+    for(std::size_t i = 0; i < vertices.size(); ++i) fixed[i] = get(vcm, vertices[i]) ? 1 : 0;
+  }
+  return fixed;
+}
 
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
 Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double lambda, const NamedParameters& np)
@@ -130,13 +145,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
     };
   }
 
-  std::vector<char> fixed(mesh.vertices.size(), 0);
-  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
-    auto vcm = get_parameter(np, CGAL::internal_np::vertex_is_constrained);
-    for(std::size_t i = 0; i < mesh.vertices.size(); ++i) fixed[i] = get(vcm, mesh.vertices[i]) ? 1 : 0;
-  }
   const internal::Positions before = mesh.positions;
-  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, std::move(fixed), s);
+  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh.vertices, np), s);
 
   // Write back only what moved: fixed vertices keep their exact kernel coordinates.
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
@@ -226,18 +236,12 @@ double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& n
   const Laplacian lap = internal::choose_laplacian(np);
   const Vertex_area area = internal::choose_vertex_area(np);
   internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil);
-  if(lap == Laplacian::cotangent) internal::require_positive_mass(pencil.mass, area);
-  std::vector<char> free_mask(mesh.vertices.size());
+  internal::require_positive_mass(lap, pencil.mass, area);
   const bool fix_boundary =
     CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::fix_boundary), true);
-  for(std::size_t i = 0; i < free_mask.size(); ++i) free_mask[i] = !(fix_boundary && mesh.topology.on_boundary[i]);
-  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
-    auto vcm = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_is_constrained);
-    for(std::size_t i = 0; i < free_mask.size(); ++i)
-      if(get(vcm, mesh.vertices[i])) free_mask[i] = 0;
-  }
-  const double mu = internal::largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
-  return mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity();
+  const std::vector<char> free_mask =
+    internal::free_vertex_mask(mesh.topology, fix_boundary, internal::constrained_vertices(mesh.vertices, np));
+  return internal::explicit_stability_bound(pencil, free_mask, false);
 }
 
 /// @brief returns the mean edge length of `tm` (each edge once). Named parameters:
@@ -256,9 +260,9 @@ template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::De
 double scale_free_time_step(const TriangleMesh& tm, double tau,
                             const NamedParameters& np = CGAL::parameters::default_values())
 {
-  if(internal::choose_laplacian(np) == Laplacian::uniform) return tau;
-  const double h = mean_edge_length(tm, np);
-  return tau * h * h;
+  return internal::lambda_of_time_step(
+    tau, Time_step_unit::mean_edge_length_squared, internal::choose_laplacian(np),
+    [&] { return mean_edge_length(tm, np); }, [] { return std::numeric_limits<double>::quiet_NaN(); });
 }
 
 /// @brief returns the time step lambda given as `value` in `unit` for the operator of `tm`
@@ -267,12 +271,9 @@ template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::De
 double time_step(const TriangleMesh& tm, double value, Time_step_unit unit,
                  const NamedParameters& np = CGAL::parameters::default_values())
 {
-  switch(unit) {
-    case Time_step_unit::stability_bound: return value * explicit_stability_bound(tm, np);
-    case Time_step_unit::mean_edge_length_squared: return scale_free_time_step(tm, value, np);
-    case Time_step_unit::absolute: break;
-  }
-  return value;
+  return internal::lambda_of_time_step(
+    value, unit, internal::choose_laplacian(np), [&] { return mean_edge_length(tm, np); },
+    [&] { return explicit_stability_bound(tm, np); });
 }
 
 /// @brief returns the explicit scheme's automatic time step for a stability bound computed

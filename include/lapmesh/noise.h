@@ -14,7 +14,6 @@
 
 #include <lapmesh/internal/geometry.h>
 #include <lapmesh/internal/mesh_extraction.h>
-#include <lapmesh/internal/smoothing_engine.h>
 #include <lapmesh/parameters.h>
 #include <lapmesh/types.h>
 

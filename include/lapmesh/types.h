@@ -27,6 +27,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 namespace lapmesh {
 
@@ -62,6 +63,13 @@ struct Enum_names<Laplacian>
     {Laplacian::uniform, "uniform", "graph Laplacian (adjacency minus degrees)"},
     {Laplacian::cotangent, "cotangent", "Laplace-Beltrami (cotangent weights, vertex areas)"},
   }};
+};
+
+/// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (doc/conventions.md).
+struct Laplacian_pencil
+{
+  Eigen::SparseMatrix<double> stiffness;  ///< S: C (cotangent) or W (uniform); negative semidefinite
+  Eigen::VectorXd mass;                   ///< diagonal of M: A_i (cotangent) or degree (uniform)
 };
 
 /// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (doc/conventions.md).

@@ -4,14 +4,18 @@
 // Why a wrapper around Eigen::CholmodSupernodalLLT. SuiteSparse 5 compiles CHOLMOD's supernodal
 // numeric factorisation with OpenMP regions of a fixed 4 threads (CHOLMOD_OMP_NUM_THREADS in
 // cholmod_core.h). The supernodes of a surface mesh are small, so these regions cost their
-// fork/join and, next to OpenBLAS's own threads, oversubscribe the cores: on a 2-core machine the
-// numeric factorisation of a 280k-vertex Laplacian takes 0.60-0.74 s with them and 0.28-0.33 s
-// without (measured, same build). The wrapper makes CHOLMOD's OpenMP regions inactive for the
+// fork/join and, next to OpenBLAS's own threads, oversubscribe the cores: on a small machine the
+// numeric factorisation is about twice as slow with them as without. The wrapper makes
+// CHOLMOD's OpenMP regions inactive for the
 // duration of each call (max-active-levels 0), then restores the caller's setting; BLAS threads
 // are left alone. The OpenMP entry points are looked up at run time (dlsym) in the runtime that
 // CHOLMOD itself loads, so lapmesh neither links an OpenMP runtime nor redeclares its functions
 // (a weak redeclaration would turn a user's own calls into weak references); the guard does
 // nothing when no OpenMP runtime is loaded.
+//
+// CHOLMOD prints its warnings and errors itself (on stdout, by default): every
+// Cholmod_supernodal_llt routes them into last_cholmod_message() instead, which the callers
+// turn into lapmesh exceptions.
 #ifndef LAPMESH_INTERNAL_CHOLMOD_H
 #define LAPMESH_INTERNAL_CHOLMOD_H
 
@@ -22,8 +26,31 @@
 
 #include <dlfcn.h>
 
+#include <string>
+
 namespace lapmesh {
 namespace internal {
+
+/// CHOLMOD's last warning or error on this thread. CHOLMOD reports through a C callback
+/// without user data, so the message is kept per thread until the caller turns it into a
+/// lapmesh exception.
+inline std::string& last_cholmod_message()
+{
+  static thread_local std::string message;
+  return message;
+}
+inline void record_cholmod_message(int status, const char* /*file*/, int /*line*/, const char* message)
+{
+  last_cholmod_message() = std::string(status > 0 ? "warning " : "error ") + std::to_string(status) + ": " +
+                           (message ? message : "(no message)");
+}
+/// CHOLMOD prints its warnings itself (on stdout, by default) unless told not to: lapmesh
+/// reports them in its own exceptions instead.
+inline void route_cholmod_messages(cholmod_common& common)
+{
+  common.print = 0;
+  common.error_handler = &record_cholmod_message;
+}
 
 /// Makes OpenMP parallel regions inactive in its scope (this thread's setting; with runtimes
 /// that keep the setting process-wide, OpenMP regions started meanwhile by other threads run
@@ -78,11 +105,16 @@ public:
   enum class Ordering {
     amd,        ///< AMD only: cheap, the best for a factorisation used once
     automatic   ///< CHOLMOD's default: AMD, and METIS too when AMD's flops per factor entry
-                ///< exceed 500 (regular grids such as a torus: 2.5x fewer flops); the better
-                ///< of the two is kept. The METIS analysis costs 10x AMD's.
+                ///< exceed 500 (regular grids such as a torus, where METIS's factor needs far
+                ///< fewer flops); the better of the two is kept. The METIS analysis costs much
+                ///< more than AMD's.
   };
 
-  explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd) { set_ordering(ordering); }
+  explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd)
+  {
+    route_cholmod_messages(cholmod());
+    set_ordering(ordering);
+  }
   void set_ordering(Ordering ordering)
   {
     if(ordering == Ordering::automatic) {

@@ -236,6 +236,21 @@ void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S)
   std::fill(S.valuePtr(), S.valuePtr() + nnz, 0.0);
 }
 
+/// Mean length of the edges (each edge counted once).
+inline double mean_edge_length(const Mesh_topology& t, const Positions& P)
+{
+  double sum = 0;
+  std::size_t count = 0;
+  for(Index i = 0; i < t.num_vertices; ++i)
+    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k) {
+      const Index j = t.inner[k];
+      if(j <= i) continue;
+      sum += (P.row(i) - P.row(j)).norm();
+      ++count;
+    }
+  return count ? sum / double(count) : 0.0;
+}
+
 } // namespace internal
 } // namespace lapmesh
 

@@ -1,0 +1,82 @@
+// Internal: assembly of the Laplacian pencil (S, M) of positions on a topology, the checks of
+// its mass, and the choice of operator and vertex area from named parameters.
+#ifndef LAPMESH_INTERNAL_LAPLACIAN_ASSEMBLY_H
+#define LAPMESH_INTERNAL_LAPLACIAN_ASSEMBLY_H
+
+#include <lapmesh/errors.h>
+#include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/topology.h>
+#include <lapmesh/parameters.h>
+#include <lapmesh/types.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <string>
+
+namespace lapmesh {
+namespace internal {
+
+/// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
+/// matrix with t's pattern (repeated assembly while smoothing) only the values are written.
+inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
+                            Vertex_area area, bool parallel, Laplacian_pencil& out)
+{
+  if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
+     !out.stiffness.isCompressed())
+    make_pattern_matrix(t, out.stiffness);
+  if(laplacian == Laplacian::uniform) {
+    fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
+    out.mass.resize(t.num_vertices);
+    for(Index v = 0; v < t.num_vertices; ++v) out.mass[v] = t.degree(v);
+    return;
+  }
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
+  out.mass = gather_corner_sums(t, g.corner_area, parallel);
+}
+
+inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)
+{
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  return gather_corner_sums(t, g.corner_area, parallel);
+}
+
+/// Throws Mesh_error naming the first vertex with a non-positive mass. The spectral and
+/// smoothing solvers need M positive definite; the Voronoi area can fail this on obtuse meshes.
+inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
+{
+  for(Eigen::Index i = 0; i < mass.size(); ++i)
+    if(!(mass[i] > 0))
+      throw Mesh_error("vertex " + std::to_string(i) + " has a non-positive " + to_string(area) +
+                         " area (" + std::to_string(mass[i]) +
+                         "); the mass matrix must be positive: use the mixed or barycentric area",
+                       Mesh_error::Element::vertex, i);
+}
+
+/// require_positive_mass() for the cotangent Laplacian's vertex areas; the uniform mass (the
+/// degrees) is positive by construction.
+inline void require_positive_mass(Laplacian laplacian, const Eigen::VectorXd& mass, Vertex_area area)
+{
+  if(laplacian == Laplacian::cotangent) require_positive_mass(mass, area);
+}
+
+template <typename NamedParameters>
+Laplacian choose_laplacian(const NamedParameters& np)
+{
+  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::laplacian),
+                                            Laplacian::cotangent);
+}
+template <typename NamedParameters>
+Vertex_area choose_vertex_area(const NamedParameters& np)
+{
+  return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::vertex_area),
+                                            Vertex_area::barycentric);
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif

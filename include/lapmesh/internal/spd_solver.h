@@ -1,0 +1,242 @@
+// Internal: sparse symmetric positive definite systems with Dirichlet constraints.
+//
+// Constrained_spd_system keeps the free block A_FF (lower triangle) of a matrix
+// A = d_scale diag(d) + s_scale S, S symmetric with a fixed pattern, and moves the terms of the
+// fixed (constrained) unknowns to the right-hand side, in the manner of pmp's
+// cholesky_solve(A, B, is_constrained, C): A_FF X_F = B_F - A_FB X_B. Its pattern and the map
+// slot-of-S -> slot-of-A_FF are built once; refilling only rewrites values.
+//
+// Spd_direct_solver factorises A_FF: Eigen's SimplicialLDLT, CHOLMOD's supernodal LL^T, or a
+// user's CGAL solver; the symbolic analysis is done once, each refactorisation is numeric only.
+#ifndef LAPMESH_INTERNAL_SPD_SOLVER_H
+#define LAPMESH_INTERNAL_SPD_SOLVER_H
+
+#include <lapmesh/errors.h>
+#include <lapmesh/internal/cholmod.h>
+#include <lapmesh/internal/parallel.h>
+#include <lapmesh/internal/topology.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include <algorithm>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// The free block of a symmetric sparse matrix and the right-hand side contribution of the
+/// fixed unknowns.
+class Constrained_spd_system
+{
+public:
+  using SpMat = Eigen::SparseMatrix<double>;
+
+  /// `pattern`: a compressed symmetric matrix (its values are not read); `free_mask[i]` = 0 for
+  /// a fixed unknown.
+  Constrained_spd_system(const SpMat& pattern, std::vector<char> free_mask) : m_free(std::move(free_mask))
+  {
+    const Index n = Index(pattern.rows());
+    const Index* outer = pattern.outerIndexPtr();
+    const Index* inner = pattern.innerIndexPtr();
+    m_free_index.assign(std::size_t(n), -1);
+    Index nf = 0;
+    for(Index i = 0; i < n; ++i)
+      if(m_free[i]) m_free_index[i] = nf++;
+    m_A.resize(nf, nf);
+    m_diagonal.resize(std::size_t(nf));
+    std::vector<Index> a_outer(nf + 1, 0), a_inner;
+    a_inner.reserve(std::size_t(pattern.nonZeros()) / 2 + nf);
+    m_source.reserve(a_inner.capacity());
+    for(Index j = 0; j < n; ++j) {
+      if(!m_free[j]) continue;
+      for(Index k = outer[j]; k < outer[j + 1]; ++k) {  // column j = row j (symmetric pattern)
+        const Index i = inner[k];
+        if(i < j || !m_free[i]) continue;
+        if(i == j) m_diagonal[m_free_index[j]] = Index(a_inner.size());
+        a_inner.push_back(m_free_index[i]);
+        m_source.push_back(k);
+      }
+      a_outer[m_free_index[j] + 1] = Index(a_inner.size());
+    }
+    m_A.resizeNonZeros(Index(a_inner.size()));
+    std::copy(a_outer.begin(), a_outer.end(), m_A.outerIndexPtr());
+    std::copy(a_inner.begin(), a_inner.end(), m_A.innerIndexPtr());
+  }
+
+  Index size() const { return Index(m_A.rows()); }
+  /// The lower triangle of A_FF (the pattern is set at construction; values by fill_matrix()).
+  const SpMat& matrix() const { return m_A; }
+  bool is_free(Index i) const { return m_free[i] != 0; }
+  /// Row of unknown i in the free block (-1 for a fixed one).
+  Index free_index(Index i) const { return m_free_index[i]; }
+
+  /// A_FF = d_scale diag(d)_FF + s_scale S_FF, S with the pattern given at construction.
+  void fill_matrix(const SpMat& S, double s_scale, const Eigen::VectorXd& d, double d_scale)
+  {
+    const double* values = S.valuePtr();
+    double* a = m_A.valuePtr();
+    const Index na = m_A.nonZeros();
+    for(Index k = 0; k < na; ++k) a[k] = s_scale * values[m_source[k]];
+    for(Index i = 0; i < Index(m_free.size()); ++i)
+      if(m_free[i]) a[m_diagonal[m_free_index[i]]] += d[i] * d_scale;
+  }
+
+  /// B_F = d_scale diag(d)_FF X_F - A_FB X_B for A as in fill_matrix(): row i of B is the free
+  /// row of unknown i; X holds the current values, its fixed rows the constraints.
+  template <typename Values, typename Rhs>
+  void fill_rhs(const SpMat& S, double s_scale, const Eigen::VectorXd& d, double d_scale, const Values& X, Rhs& B,
+                bool parallel) const
+  {
+    const double* values = S.valuePtr();
+    const Index* outer = S.outerIndexPtr();
+    const Index* inner = S.innerIndexPtr();
+    for_each_index(Index(m_free.size()), parallel, [&](Index i) {
+      if(!m_free[i]) return;
+      Eigen::Vector3d b = (d[i] * d_scale) * X.row(i).transpose();
+      for(Index k = outer[i]; k < outer[i + 1]; ++k)
+        if(!m_free[inner[k]]) b -= s_scale * values[k] * X.row(inner[k]).transpose();
+      B.row(m_free_index[i]) = b.transpose();
+    });
+  }
+
+  /// The free rows of X, in the order of the free block.
+  template <typename Values, typename Block>
+  void gather(const Values& X, Block& Y) const
+  {
+    for(Index i = 0; i < Index(m_free.size()); ++i)
+      if(m_free[i]) Y.row(m_free_index[i]) = X.row(i);
+  }
+  /// Writes the free block Y back into the free rows of X; fixed rows are not touched.
+  template <typename Block, typename Values>
+  void scatter(const Block& Y, Values& X) const
+  {
+    for(Index i = 0; i < Index(m_free.size()); ++i)
+      if(m_free[i]) X.row(i) = Y.row(m_free_index[i]);
+  }
+
+private:
+  std::vector<char> m_free;
+  std::vector<Index> m_free_index;
+  std::vector<Index> m_source;    // slot of S feeding each slot of A_FF
+  std::vector<Index> m_diagonal;  // slot of each diagonal entry of A_FF
+  SpMat m_A;
+};
+
+/// Sparse Cholesky of an SPD matrix given by its lower triangle: Eigen's SimplicialLDLT (AMD),
+/// or, when compiled with LAPMESH_HAS_CHOLMOD (and linked with libcholmod), CHOLMOD's
+/// supernodal LL^T (internal/cholmod.h). Ordering: AMD, or CHOLMOD's choice between AMD and
+/// METIS when the analysis serves at least `automatic_ordering_min_factorizations`
+/// factorisations: METIS orders much more slowly than AMD and pays only through cheaper
+/// factorisations on regular grids; where it saves nothing CHOLMOD's rule keeps AMD.
+class Spd_direct_solver
+{
+public:
+  using SpMat = Eigen::SparseMatrix<double>;
+  /// A user's solver (CGAL's `sparse_linear_solver`): factorises the full symmetric matrix,
+  /// then solves one right-hand side block.
+  struct External
+  {
+    std::function<bool(const SpMat& full)> factor;
+    std::function<bool(const Eigen::MatrixXd& B, Eigen::MatrixXd& X)> solve;
+  };
+
+  explicit Spd_direct_solver(bool use_cholmod, External external = {}) : m_external(std::move(external))
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    m_cholmod = use_cholmod;
+#else
+    (void)use_cholmod;
+#endif
+  }
+  const char* name() const
+  {
+    return m_external.factor ? "sparse_linear_solver" : m_cholmod ? "cholmod-supernodal" : "eigen-ldlt";
+  }
+
+  static constexpr int automatic_ordering_min_factorizations = 6;
+
+  void analyze(const SpMat& A, int planned_factorizations)
+  {
+    if(m_external.factor) return;  // the user's solver analyses in its factor()
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      using Ordering = Cholmod_supernodal_llt::Ordering;
+      const bool automatic = planned_factorizations >= automatic_ordering_min_factorizations;
+      m_chol.set_ordering(automatic ? Ordering::automatic : Ordering::amd);
+      m_chol.analyzePattern(A);
+      if(m_chol.info() != Eigen::Success && automatic) {  // METIS failed (or is missing): AMD alone
+        m_chol.set_ordering(Ordering::amd);
+        m_chol.analyzePattern(A);
+      }
+      if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
+      return;
+    }
+#endif
+    (void)planned_factorizations;
+    m_ldlt.analyzePattern(A);
+    if(m_ldlt.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
+  }
+  /// False if the matrix is not (numerically) positive definite; failure() then says why.
+  bool factorize(const SpMat& A)
+  {
+    m_failure.clear();
+    if(m_external.factor) {
+      const bool ok = m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
+      if(!ok) m_failure = "the user's sparse_linear_solver failed";
+      return ok;
+    }
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      last_cholmod_message().clear();
+      m_chol.factorize(A);
+      if(m_chol.info() == Eigen::Success) return true;
+      m_failure = "CHOLMOD " + (last_cholmod_message().empty() ? std::string("reported a numerical issue")
+                                                                 : last_cholmod_message());
+      return false;
+    }
+#endif
+    m_ldlt.factorize(A);
+    if(m_ldlt.info() == Eigen::Success && m_ldlt.vectorD().minCoeff() > 0) return true;
+    m_failure = "Eigen's LDL^T found a pivot <= 0";
+    return false;
+  }
+  /// Why the last factorize() failed (empty after a success).
+  const std::string& failure() const { return m_failure; }
+  template <typename Rhs, typename Solution>
+  bool solve(const Rhs& B, Solution& X)
+  {
+    if(m_external.solve) {
+      Eigen::MatrixXd x;
+      if(!m_external.solve(Eigen::MatrixXd(B), x) || x.rows() != B.rows() || x.cols() != B.cols()) return false;
+      X = x;
+      return true;
+    }
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod) {
+      X = m_chol.solve(B);
+      return m_chol.info() == Eigen::Success;
+    }
+#endif
+    X = m_ldlt.solve(B);
+    return m_ldlt.info() == Eigen::Success;
+  }
+
+private:
+  External m_external;
+  std::string m_failure;
+  bool m_cholmod = false;
+  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> m_ldlt;
+#ifdef LAPMESH_HAS_CHOLMOD
+  Cholmod_supernodal_llt m_chol;  // routes CHOLMOD's messages (internal/cholmod.h)
+#endif
+};
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif

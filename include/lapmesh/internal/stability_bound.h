@@ -1,0 +1,155 @@
+// Internal: the explicit scheme's stability bound 2 / mu_max (mu_max the largest eigenvalue of
+// -L = -M^-1 S on the free vertices), its cheap Gershgorin lower bound, the free-vertex mask
+// they are computed on, and the conversion of a time step given in a unit into lambda.
+#ifndef LAPMESH_INTERNAL_STABILITY_BOUND_H
+#define LAPMESH_INTERNAL_STABILITY_BOUND_H
+
+#include <lapmesh/internal/parallel.h>
+#include <lapmesh/internal/topology.h>
+#include <lapmesh/types.h>
+
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// The free vertices (1) of a smoothing system: a vertex is fixed (0) when `constrained[i]` != 0
+/// (a shorter or empty `constrained` leaves the rest unconstrained) or when it lies on the
+/// boundary and `fix_boundary` is set.
+inline std::vector<char> free_vertex_mask(const Mesh_topology& t, bool fix_boundary,
+                                          const std::vector<char>& constrained = {})
+{
+  std::vector<char> free_mask(std::size_t(t.num_vertices));
+  for(Index i = 0; i < t.num_vertices; ++i) {
+    const bool fixed = (std::size_t(i) < constrained.size() && constrained[i]) || (fix_boundary && t.on_boundary[i]);
+    free_mask[i] = !fixed;
+  }
+  return free_mask;
+}
+
+/// Largest eigenvalue of -M_FF^-1 S_FF (the free block of -L), by Lanczos on the symmetric
+/// form M^-1/2 (-S) M^-1/2, which has the same spectrum. Extreme Ritz values converge first;
+/// no reorthogonalisation is needed for the largest one (ghost copies do not move it). The
+/// returned value is the Ritz value plus its residual bound |beta_k s_k|, so that 2 / result
+/// errs on the safe side. `free_mask[i]` = 0 for fixed vertices.
+inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& pencil,
+                                                     const std::vector<char>& free_mask, bool parallel,
+                                                     int max_steps = 400, double rel_tol = 1e-9)
+{
+  const Index n = Index(pencil.mass.size());
+  const auto& S = pencil.stiffness;
+  Eigen::VectorXd inv_sqrt_m(n);
+  for(Index i = 0; i < n; ++i) inv_sqrt_m[i] = free_mask[i] ? 1.0 / std::sqrt(pencil.mass[i]) : 0.0;
+  auto apply = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    for_each_index(n, parallel, [&](Index i) {
+      if(!free_mask[i]) { y[i] = 0; return; }
+      double s = 0;
+      for(Index k = S.outerIndexPtr()[i]; k < S.outerIndexPtr()[i + 1]; ++k) {
+        const Index j = S.innerIndexPtr()[k];
+        s += S.valuePtr()[k] * inv_sqrt_m[j] * x[j];
+      }
+      y[i] = -inv_sqrt_m[i] * s;
+    });
+  };
+  // Deterministic start with components on every free vertex.
+  Eigen::VectorXd v(n), w(n), v_prev = Eigen::VectorXd::Zero(n);
+  std::uint64_t state = 0x9E3779B97F4A7C15ull;
+  for(Index i = 0; i < n; ++i) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    v[i] = free_mask[i] ? double(state >> 11) / double(1ull << 53) - 0.5 : 0.0;
+  }
+  const double norm0 = v.norm();
+  if(!(norm0 > 0)) return 0.0;
+  v /= norm0;
+  std::vector<double> alpha, beta;
+  double estimate = 0;
+  for(int k = 0; k < max_steps; ++k) {
+    apply(v, w);
+    const double a = w.dot(v);
+    w -= a * v;
+    if(k > 0) w -= beta.back() * v_prev;
+    alpha.push_back(a);
+    const double b = w.norm();
+    // Ritz values of the tridiagonal matrix, every 8 steps (O(m^2) each).
+    const int m = int(alpha.size());
+    if(m % 8 != 0 && m != max_steps && !(b <= 1e-14 * std::abs(a))) {
+      beta.push_back(b);
+      v_prev.swap(v);
+      v = w / b;
+      continue;
+    }
+    Eigen::VectorXd diag = Eigen::Map<const Eigen::VectorXd>(alpha.data(), m);
+    Eigen::VectorXd sub(std::max(m - 1, 1));
+    for(int r = 0; r + 1 < m; ++r) sub[r] = beta[r];
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
+    es.computeFromTridiagonal(diag, sub.head(std::max(m - 1, 0)), Eigen::ComputeEigenvectors);
+    const double theta = es.eigenvalues()[m - 1];
+    const double residual = std::abs(b * es.eigenvectors()(m - 1, m - 1));
+    estimate = theta + residual;
+    if(residual <= rel_tol * theta || b <= 1e-14 * std::abs(theta)) break;
+    beta.push_back(b);
+    v_prev.swap(v);
+    v = w / b;
+  }
+  return estimate;
+}
+
+/// 2 / mu for a largest eigenvalue mu of -L; infinity when mu <= 0 (nothing is unstable).
+inline double stability_bound_of(double mu) { return mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity(); }
+
+/// The explicit scheme's stability bound 2 / mu_max of the pencil on the free vertices
+/// (Lanczos estimate, on the safe side).
+inline double explicit_stability_bound(const Laplacian_pencil& pencil, const std::vector<char>& free_mask,
+                                       bool parallel)
+{
+  return stability_bound_of(largest_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel));
+}
+
+/// Gershgorin on M^-1 S: mu_max <= G = max_i (|S_ii| + sum_j |S_ij|) / M_i over the free
+/// vertices, so 2 / G is a lower bound of the stability bound (infinity when G = 0). Below it
+/// the explicit scheme is provably stable without the Lanczos estimate.
+inline double gershgorin_stability_bound(const Laplacian_pencil& pencil, const std::vector<char>& free_mask)
+{
+  const auto& S = pencil.stiffness;
+  double G = 0;
+  for(Index i = 0; i < Index(pencil.mass.size()); ++i) {
+    if(!free_mask[i]) continue;
+    double r = 0;
+    for(Index k = S.outerIndexPtr()[i]; k < S.outerIndexPtr()[i + 1]; ++k) r += std::abs(S.valuePtr()[k]);
+    G = std::max(G, r / pencil.mass[i]);
+  }
+  return G > 0 ? 2.0 / G : std::numeric_limits<double>::infinity();
+}
+
+/// lambda for a time step `value` given in `unit`: value x stability bound, value x (mean edge
+/// length)^2 for the cotangent Laplacian (the uniform one's lambda is already dimensionless),
+/// or value itself. `mean_edge_length()` and `stability_bound()` are called only when the unit
+/// needs them.
+template <typename MeanEdgeLength, typename StabilityBound>
+double lambda_of_time_step(double value, Time_step_unit unit, Laplacian laplacian, MeanEdgeLength&& mean_edge_length,
+                           StabilityBound&& stability_bound)
+{
+  switch(unit) {
+    case Time_step_unit::stability_bound: return value * stability_bound();
+    case Time_step_unit::mean_edge_length_squared: {
+      if(laplacian == Laplacian::uniform) return value;
+      const double h = mean_edge_length();
+      return value * h * h;
+    }
+    case Time_step_unit::absolute: break;
+  }
+  return value;
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif
