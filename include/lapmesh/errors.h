@@ -64,6 +64,7 @@ public:
 class Parameter_error : public std::invalid_argument
 {
 public:
+  /// A problem `what` with the setting `parameter`; `suggested_value` resolves it, if given.
   Parameter_error(std::string parameter, const std::string& what, std::string suggested_value = {})
     : std::invalid_argument(what), m_parameter(std::move(parameter)), m_suggested_value(std::move(suggested_value))
   {}

@@ -56,9 +56,11 @@ enum class Laplacian {
   uniform,   ///< graph Laplacian: stiffness W = A - D, mass D = diag(degree)
   cotangent  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
 };
+/// The name table of Laplacian.
 template <>
 struct Enum_names<Laplacian>
 {
+  /// The names of the Laplacian enumerators, in display order.
   static constexpr std::array<Named<Laplacian>, 2> table{{
     {Laplacian::uniform, "uniform", "graph Laplacian (adjacency minus degrees)"},
     {Laplacian::cotangent, "cotangent", "Laplace-Beltrami (cotangent weights, vertex areas)"},
@@ -78,9 +80,11 @@ enum class Vertex_area {
   voronoi,      ///< circumcentric cells; can be zero or negative on obtuse meshes
   mixed         ///< Meyer et al. 2003 mixed cells; positive, sums to the surface area
 };
+/// The name table of Vertex_area.
 template <>
 struct Enum_names<Vertex_area>
 {
+  /// The names of the Vertex_area enumerators, in display order.
   static constexpr std::array<Named<Vertex_area>, 3> table{{
     {Vertex_area::barycentric, "barycentric", "one third of the incident face areas"},
     {Vertex_area::voronoi, "voronoi", "circumcentric cells (can be <= 0 on obtuse meshes)"},
@@ -96,9 +100,11 @@ enum class Smoothing_scheme {
   implicit_euler,  ///< (M - lambda S) P' = M P (backward Euler); unconditionally stable
   conformal        ///< conformalized mean curvature flow (Kazhdan et al. 2012): S of the input, M updated
 };
+/// The name table of Smoothing_scheme.
 template <>
 struct Enum_names<Smoothing_scheme>
 {
+  /// The names of the Smoothing_scheme enumerators, in display order.
   static constexpr std::array<Named<Smoothing_scheme>, 3> table{{
     {Smoothing_scheme::explicit_euler, "explicit", "forward Euler, stable below the stability bound"},
     {Smoothing_scheme::implicit_euler, "implicit", "backward Euler, stable at any time step"},
@@ -112,9 +118,11 @@ enum class Time_step_unit {
   mean_edge_length_squared,  ///< lambda = tau x (mean edge length)^2 (cotangent), tau (uniform): scale_free_time_step()
   stability_bound            ///< lambda = tau x the explicit stability bound 2 / mu_max of the mesh
 };
+/// The name table of Time_step_unit.
 template <>
 struct Enum_names<Time_step_unit>
 {
+  /// The names of the Time_step_unit enumerators, in display order.
   static constexpr std::array<Named<Time_step_unit>, 3> table{{
     {Time_step_unit::absolute, "absolute", "lambda itself"},
     {Time_step_unit::mean_edge_length_squared, "edge2", "times the mean edge length squared (cotangent)"},
@@ -125,20 +133,23 @@ struct Enum_names<Time_step_unit>
 /// What a smoothing run did. Times are wall-clock seconds spent in each phase.
 struct Smoothing_report
 {
-  int iterations = 0;
-  std::size_t free_vertices = 0;
+  int iterations = 0;              ///< iterations done
+  std::size_t free_vertices = 0;  ///< vertices that moved (neither boundary nor constrained)
   /// For the explicit scheme: 2 / mu_max, mu_max the largest eigenvalue of -L on the free
   /// vertices of the input mesh; the scheme is stable for lambda below it (NaN otherwise).
   /// When lambda is below the (cheap) Gershgorin bound the Lanczos estimate is skipped
   /// (stability is proven) unless requested: then this holds the Gershgorin bound and
   /// `stability_bound_exact` is false.
   double stability_bound = std::numeric_limits<double>::quiet_NaN();
-  bool stability_bound_exact = false;
-  bool above_stability_bound = false;
+  bool stability_bound_exact = false;  ///< the bound is the Lanczos estimate, not Gershgorin's
+  bool above_stability_bound = false;  ///< lambda exceeds the bound: the explicit scheme may diverge
   /// "eigen-ldlt", "cholmod-supernodal" or "sparse_linear_solver" (implicit schemes).
   std::string solver;
-  double assembly_seconds = 0, analysis_seconds = 0, factorization_seconds = 0, solve_seconds = 0;
-  int factorizations = 0;
+  double assembly_seconds = 0;       ///< building the operator
+  double analysis_seconds = 0;       ///< the symbolic analysis of the implicit system
+  double factorization_seconds = 0;  ///< numeric factorisations
+  double solve_seconds = 0;          ///< solves and explicit steps
+  int factorizations = 0;            ///< numeric factorisations done
   int preconditioned_solves = 0;  ///< steps solved by CG with a previous factor
   int cg_iterations = 0;          ///< total CG iterations (all three coordinates)
 };
@@ -147,9 +158,11 @@ struct Smoothing_report
 
 /// The direction of the displacements: a Gaussian 3-vector, or a Gaussian scalar times the vertex normal.
 enum class Noise_direction { isotropic, normal };
+/// The name table of Noise_direction.
 template <>
 struct Enum_names<Noise_direction>
 {
+  /// The names of the Noise_direction enumerators, in display order.
   static constexpr std::array<Named<Noise_direction>, 2> table{{
     {Noise_direction::isotropic, "isotropic", "a Gaussian 3-vector per vertex"},
     {Noise_direction::normal, "normal", "a Gaussian scalar times the unit vertex normal"},
@@ -158,9 +171,11 @@ struct Enum_names<Noise_direction>
 
 /// The length that the noise level multiplies to give sigma.
 enum class Noise_scale { mean_edge_length, bounding_box_diagonal };
+/// The name table of Noise_scale.
 template <>
 struct Enum_names<Noise_scale>
 {
+  /// The names of the Noise_scale enumerators, in display order.
   static constexpr std::array<Named<Noise_scale>, 2> table{{
     {Noise_scale::mean_edge_length, "mean-edge", "sigma = level x mean edge length"},
     {Noise_scale::bounding_box_diagonal, "bbox", "sigma = level x bounding-box diagonal"},
@@ -201,9 +216,11 @@ enum class Run_status {
   diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
   failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
 };
+/// The name table of Run_status.
 template <>
 struct Enum_names<Run_status>
 {
+  /// The names of the Run_status enumerators, in display order.
   static constexpr std::array<Named<Run_status>, 3> table{{
     {Run_status::ok, "ok", "finite and within one bounding-box diagonal"},
     {Run_status::diverged, "diverged", "the RMS distance exceeded one diagonal or is not finite"},
@@ -284,9 +301,11 @@ struct Denoising_study
 
 /// A colour map for per-vertex scalars (colormap.h).
 enum class Colormap { jet, viridis, coolwarm, gray };
+/// The name table of Colormap.
 template <>
 struct Enum_names<Colormap>
 {
+  /// The names of the Colormap enumerators, in display order.
   static constexpr std::array<Named<Colormap>, 4> table{{
     {Colormap::jet, "jet", "rainbow, blue to red"},
     {Colormap::viridis, "viridis", "perceptually uniform, dark blue to yellow"},
@@ -304,9 +323,11 @@ enum class Sparse_cholesky {
                ///< cholmod); the default when available: with an optimised BLAS its block solves
                ///< cost less per vector than single ones
 };
+/// The name table of Sparse_cholesky.
 template <>
 struct Enum_names<Sparse_cholesky>
 {
+  /// The names of the Sparse_cholesky enumerators, in display order.
   static constexpr std::array<Named<Sparse_cholesky>, 2> table{{
     {Sparse_cholesky::simplicial, "simplicial", "Eigen's SimplicialLLT"},
     {Sparse_cholesky::cholmod, "cholmod", "CHOLMOD's supernodal LL^T"},
@@ -318,9 +339,11 @@ enum class Krylov_method {
   block_lanczos,  ///< lapmesh's thick-restart block Lanczos (default)
   spectra         ///< Spectra's SymEigsShiftSolver (implicitly restarted Lanczos)
 };
+/// The name table of Krylov_method.
 template <>
 struct Enum_names<Krylov_method>
 {
+  /// The names of the Krylov_method enumerators, in display order.
   static constexpr std::array<Named<Krylov_method>, 2> table{{
     {Krylov_method::block_lanczos, "block-lanczos", "lapmesh's thick-restart block Lanczos"},
     {Krylov_method::spectra, "spectra", "Spectra's implicitly restarted Lanczos"},
@@ -352,8 +375,8 @@ struct Spectral_options
   int extra = -1;                  ///< extra pairs for the completeness check; -1: max(6, k/10)
   double shift_factor = 1e-2;      ///< sigma = -shift_factor / sum(M)
   bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
-  Sparse_cholesky cholesky = default_sparse_cholesky;
-  Krylov_method method = Krylov_method::block_lanczos;
+  Sparse_cholesky cholesky = default_sparse_cholesky;   ///< the factorisation of the shift-invert operator
+  Krylov_method method = Krylov_method::block_lanczos;  ///< the eigensolver
   int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 60 pairs, else 8
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
   int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
@@ -367,12 +390,12 @@ struct Spectral_options
 /// The computed eigenpairs: values ascending, vectors M-orthonormal (one per column).
 struct Spectral_pairs
 {
-  Eigen::VectorXd values;
-  Eigen::MatrixXd vectors;
+  Eigen::VectorXd values;   ///< eigenvalues, ascending
+  Eigen::MatrixXd vectors;  ///< M-orthonormal eigenvectors, one per column
   double shift = 0;           ///< sigma used by the shift-invert solver (0 for the dense path)
   long long operations = 0;   ///< shift-invert solves, all attempts
-  int attempts = 0;
-  bool dense = false;
+  int attempts = 0;         ///< solver runs (more than one after a completeness retry)
+  bool dense = false;       ///< solved by the dense path (small meshes)
 };
 
 // ---- reading meshes -------------------------------------------------------------------

@@ -185,6 +185,7 @@ struct Reconstruction
 {
   lapmesh::Vertex_vectors positions;                    ///< the rebuilt vertex positions
   std::shared_ptr<const lapmesh::Spectral_basis> basis;  ///< the basis used (computed or given)
+  bool basis_from_cache = false;                        ///< found in the cache (reconstruct() with a cache)
   double eigenvalue_k_minus_1 = 0;                      ///< the largest eigenvalue used
   std::vector<Warning> warnings;                        ///< e.g. k splits an eigenspace
 };
@@ -194,6 +195,20 @@ struct Reconstruction
 /// otherwise), else computes max(k, basis_size) pairs.
 Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings,
                            std::shared_ptr<const lapmesh::Spectral_basis> basis = nullptr);
+
+/// Which geometry a cached basis belongs to: the front end's mesh id and a number that
+/// changes whenever the positions change.
+struct Basis_key
+{
+  std::string mesh;
+  long long geometry = 0;
+};
+
+/// As above, with the basis taken from `cache` when it holds one for `key` with at least k
+/// pairs (trusted: the key says it was computed from these positions), else computed and
+/// inserted.
+Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings, Basis_cache& cache,
+                           const Basis_key& key);
 
 // ---- smoothing --------------------------------------------------------------------------
 

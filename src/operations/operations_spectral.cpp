@@ -107,8 +107,10 @@ std::size_t Basis_cache::bytes_of(const lapmesh::Spectral_basis& b)
   return sizeof(double) * (n * m + m + n);  // eigenvectors, eigenvalues, mass
 }
 
-Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings,
-                           std::shared_ptr<const lapmesh::Spectral_basis> basis)
+namespace {
+
+Reconstruction reconstruct_with(const Mesh& mesh, const Reconstruct_settings& settings,
+                                std::shared_ptr<const lapmesh::Spectral_basis> basis, bool verify_basis)
 {
   const long long n = (long long)num_vertices(mesh);
   check_k(settings.k, n, "k");
@@ -117,7 +119,7 @@ Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& setting
     if(k > basis->size())
       throw lapmesh::Parameter_error("k", "k = " + std::to_string(k) + " is out of range: the basis holds " +
                                             std::to_string(basis->size()) + " eigenpairs");
-    check_basis_fits(*basis, mesh);
+    if(verify_basis) check_basis_fits(*basis, mesh);
   } else {
     if(settings.basis_size < 0 || settings.basis_size > n)
       throw lapmesh::Parameter_error("basis_size", "basis size " + std::to_string(settings.basis_size) +
@@ -139,6 +141,25 @@ Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& setting
                               " agree to 1e-8 relative: the reconstruction depends on the basis chosen inside that "
                               "eigenspace",
                             {}});
+  return out;
+}
+
+} // namespace
+
+Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings,
+                           std::shared_ptr<const lapmesh::Spectral_basis> basis)
+{
+  return reconstruct_with(mesh, settings, std::move(basis), true);
+}
+
+Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings, Basis_cache& cache,
+                           const Basis_key& key)
+{
+  auto basis = cache.find(key.mesh, key.geometry, settings.laplacian, settings.area, settings.k);
+  const bool cached = basis != nullptr;
+  Reconstruction out = reconstruct_with(mesh, settings, std::move(basis), false);
+  out.basis_from_cache = cached;
+  if(!cached) cache.insert(key.mesh, key.geometry, out.basis);
   return out;
 }
 

@@ -434,22 +434,16 @@ struct Server::Impl
     settings.laplacian = p.option("laplacian", settings.laplacian);
     settings.area = p.option("area", settings.area);
     p.finish();
-    std::shared_ptr<const lapmesh::Spectral_basis> basis =
-      bases.find(s.source.id, s.geometry, settings.laplacian, settings.area, settings.k);
-    const bool cached = basis != nullptr;
-    if(!cached) {
-      s.set_stage("eigenpairs");
-      settings.progress = [&s](const lapmesh::Spectral_progress& pr) {
-        s.done = pr.operations;
-        s.set_stage(pr.stage);
-        if(s.cancel) throw Cancelled{};
-      };
-    }
-    const lapmesh_ops::Reconstruction r = lapmesh_ops::reconstruct(s.current, settings, basis);
-    if(!cached) bases.insert(s.source.id, s.geometry, r.basis);
+    s.set_stage("eigenpairs");  // shown only while the basis is computed (a cached one is immediate)
+    settings.progress = [&s](const lapmesh::Spectral_progress& pr) {
+      s.done = pr.operations;
+      s.set_stage(pr.stage);
+      if(s.cancel) throw Cancelled{};
+    };
+    const lapmesh_ops::Reconstruction r = lapmesh_ops::reconstruct(s.current, settings, bases, {s.source.id, s.geometry});
     json out = {{"k", settings.k}, {"laplacian", lapmesh::to_string(settings.laplacian)},
                 {"area", lapmesh::to_string(settings.area)}, {"basis_size", r.basis->size()},
-                {"basis_cached", cached}, {"eigenvalue_k_minus_1", r.eigenvalue_k_minus_1}};
+                {"basis_cached", r.basis_from_cache}, {"eigenvalue_k_minus_1", r.eigenvalue_k_minus_1}};
     if(!r.warnings.empty()) out["warning"] = warning_text(r.warnings);
     lapmesh_ops::set_positions(s.current, r.positions);
     geometry_changed(s, "reconstruct");
