@@ -8,6 +8,11 @@ formats (17 significant digits), atomically, then OUT_DIR/STEM.TASK.done (its su
 A mesh that fails is recorded (status failed, the error message) and the others go on. A
 second run skips the meshes whose .done file exists, so a killed batch resumes where it
 stopped. The summary is OUT_DIR/summary-TASK.csv: mesh, vertices, faces, status, error, seconds.
+
+Dask's workers run BLAS and OpenMP on one thread (distributed's distributed.nanny.pre-spawn-environ:
+OMP_NUM_THREADS=1, OPENBLAS_NUM_THREADS=1). The sparse Cholesky and the block Lanczos round
+differently with another thread count, so the spectral and implicit-smoothing outputs are those
+of a serial run (--serial, or the command line) with the same variables, bit for bit.
 """
 import argparse
 import csv
@@ -123,6 +128,9 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
         from dask.distributed import Client, LocalCluster, as_completed
 
         cluster = None
+        # distributed's nannies write their pre-spawn environment (OMP_NUM_THREADS=1, ...) into
+        # this process's os.environ: it is restored afterwards, for the caller's later children.
+        environ = dict(os.environ)
         if scheduler:
             client = Client(scheduler)
         else:
@@ -144,6 +152,8 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
             client.close()
             if cluster is not None:
                 cluster.close()
+            os.environ.clear()
+            os.environ.update(environ)
     rows.sort(key=lambda r: r["mesh"])
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")

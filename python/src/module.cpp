@@ -326,13 +326,27 @@ PYBIND11_MODULE(_lapmesh, m)
   m.def(
     "write_mesh",
     [](const std::string& path, const Coordinates& V, const Indices& F) {
-      const Mesh mesh = mesh_of(V, F).mesh;
+      require_shape(V, "V", "n");
+      require_shape(F, "F", "m");
+      lapmesh::Vertex_vectors P(V.shape(0), 3);
+      std::copy(V.data(), V.data() + V.size(), P.data());
+      lapmesh_ops::Triangles tris(std::size_t(F.shape(0)));
+      const auto f = F.unchecked<2>();
+      for(py::ssize_t i = 0; i < f.shape(0); ++i)
+        for(int j = 0; j < 3; ++j) {
+          if(f(i, j) < 0 || f(i, j) >= V.shape(0))
+            throw lapmesh::Mesh_error("face " + std::to_string(i) + " has the vertex index " + std::to_string(f(i, j)) +
+                                        ", outside [0, " + std::to_string(V.shape(0)) + ")",
+                                      lapmesh::Mesh_error::Element::face, i);
+          tris[std::size_t(i)][std::size_t(j)] = std::size_t(f(i, j));
+        }
       py::gil_scoped_release release;
-      with_path(path, [&] { lapmesh_ops::write_mesh(path, mesh); });
+      with_path(path, [&] { lapmesh_ops::write_mesh(path, P, tris); });
     },
     py::arg("path"), py::arg("V"), py::arg("F"),
-    "Writes the mesh (V, F) to `path` (format by extension: off, obj, ply, stl), atomically.\n"
-    "Coordinates are written with 17 significant digits (they read back exactly).");
+    "Writes the triangles (V, F) to `path` (format by extension: off, obj, ply, stl), atomically,\n"
+    "as the command line writes its results: the geometry is not validated (a reconstruction may\n"
+    "have degenerate faces). Coordinates have 17 significant digits (they read back exactly).");
 
   // ---- curvature ----
   py::class_<Curvatures>(m, "Curvatures", "Per-vertex curvatures; entry i is vertex i.")

@@ -6,6 +6,11 @@ import subprocess
 
 import pytest
 
+# The environment the tests started with: the command line runs in it even after a Dask
+# LocalCluster wrote its workers' settings (OMP_NUM_THREADS=1, ...) into os.environ, so that
+# it uses as many BLAS threads as this process (the thread count changes the rounding).
+START_ENVIRONMENT = dict(os.environ)
+
 
 def _required_env(name):
     value = os.environ.get(name)
@@ -20,11 +25,12 @@ def cli():
     assert os.access(path, os.X_OK), "the lapmesh command line is not built: " + path
 
     def run(*args):
-        r = subprocess.run([path, *map(str, args)], capture_output=True, text=True)
+        r = subprocess.run([path, *map(str, args)], capture_output=True, text=True, env=START_ENVIRONMENT)
         assert r.returncode == 0, "lapmesh %s failed: %s" % (" ".join(map(str, args)), r.stderr)
         return r
 
     run.path = path
+    run.env = START_ENVIRONMENT
     return run
 
 

@@ -149,7 +149,7 @@ def test_smooth_equals_cli(mesh, cli, tmp_path, case):
     path, V, F = mesh
     out = tmp_path / "s.off"
     r = subprocess.run([cli.path, "smooth", path, "-o", str(out), *map(str, cli_smooth_args(case)), "-q"],
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, env=cli.env)
     if r.returncode != 0:  # e.g. restore_volume on a mesh with holes: the binding refuses it too
         with pytest.raises(ValueError) as e:  # ParameterError, MeshError or the library's invalid_argument
             lapmesh.smooth(V, F, **case)

@@ -168,3 +168,16 @@ def test_degenerate_face(cow):
     V[F[3, 1]] = V[F[3, 0]]  # zero-area face
     with pytest.raises(lapmesh.MeshError):
         lapmesh.curvatures(V, F)
+
+
+def test_write_mesh_checks_indices_not_geometry(cow, tmp_path):
+    V, F = cow
+    F2 = F.copy()
+    F2[7, 0] = len(V)
+    with pytest.raises(lapmesh.MeshError) as e:
+        lapmesh.write_mesh(str(tmp_path / "x.off"), V, F2)
+    assert e.value.element == "face" and e.value.index == 7
+    V2 = V.copy()
+    V2[F[0, 1]] = V2[F[0, 0]]  # a degenerate result is written as it is (as the CLI writes it)
+    lapmesh.write_mesh(str(tmp_path / "d.off"), V2, F)
+    assert os.path.getsize(tmp_path / "d.off") > 0

@@ -20,6 +20,12 @@ struct Csr_laplacian
 /// Assembles (S, M) for the Laplacian and vertex area of `settings`.
 Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings);
 
+/// Writes vertices P and triangles to `path` (format by extension, atomically) as write_mesh()
+/// does, without validating the geometry: results (a reconstruction, a smoothed mesh) may have
+/// degenerate faces and are written as they are, as the command line writes them. Throws
+/// lapmesh::Io_error; std::invalid_argument for a vertex index outside [0, rows of P).
+void write_mesh(const std::string& path, const lapmesh::Vertex_vectors& P, const Triangles& triangles);
+
 /// What a spectral basis holds (references into `basis`).
 struct Basis_contents
 {

@@ -1,6 +1,7 @@
 // The array front ends' operations (arrays.h).
 #include "arrays.h"
 
+#include <lapmesh/io.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/spectral_reconstruction.h>
 
@@ -16,6 +17,16 @@ Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings)
   out.stiffness.makeCompressed();
   out.mass = std::move(pencil.mass);
   return out;
+}
+
+void write_mesh(const std::string& path, const lapmesh::Vertex_vectors& P, const Triangles& triangles)
+{
+  for(std::size_t f = 0; f < triangles.size(); ++f)
+    for(std::size_t v : triangles[f])
+      if(v >= std::size_t(P.rows()))
+        throw std::invalid_argument("face " + std::to_string(f) + " has the vertex index " + std::to_string(v) +
+                                    ", outside [0, " + std::to_string(P.rows()) + ")");
+  lapmesh::io::write_mesh(path, P, triangles);
 }
 
 Basis_contents contents(const lapmesh::Spectral_basis& basis)
