@@ -34,6 +34,11 @@ from ._lapmesh import (
     write_mesh,
 )
 
+# Shown as lapmesh.MeshError etc. in tracebacks (they are defined in the compiled module).
+for _cls in (IoError, LapmeshWarning, MeshError, NumericalError, ParameterError):
+    _cls.__module__ = __name__
+del _cls
+
 __all__ = [
     "Curvatures", "IoError", "LapmeshWarning", "MeshError", "NumericalError", "ParameterError",
     "SpectralBasis", "add_noise", "curvatures", "laplacian", "laplacian_arrays", "names",

@@ -15,6 +15,7 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -36,12 +37,15 @@ using Indices = py::array_t<std::int64_t, py::array::c_style | py::array::forcec
 // The Python keyword of a settings field: the same name, but `lambda` is a Python keyword.
 std::string spelling(const std::string& parameter) { return parameter == "lambda" ? "lam" : parameter; }
 
-// A suggested value in Python's spelling (the library writes C++'s true/false).
+// A suggested value in Python's spelling: True/False, numbers as they are, names quoted.
 std::string value_spelling(const std::string& value)
 {
   if(value == "true") return "True";
   if(value == "false") return "False";
-  return value;
+  char* end = nullptr;
+  std::strtod(value.c_str(), &end);
+  if(!value.empty() && *end == '\0') return value;
+  return "'" + value + "'";
 }
 
 template <typename Enum>
@@ -253,7 +257,9 @@ void translate(std::exception_ptr p)
     kw["parameter"] = name;
     std::string message = name + ": " + e.what();
     if(!e.suggested_value().empty()) {
-      kw["suggested_value"] = value_spelling(e.suggested_value());
+      kw["suggested_value"] = e.suggested_value() == "true"    ? py::object(py::bool_(true))
+                              : e.suggested_value() == "false" ? py::object(py::bool_(false))
+                                                               : py::object(py::str(e.suggested_value()));
       message = std::string(e.what()) + " (set " + name + "=" + value_spelling(e.suggested_value()) + ")";
     }
     raise("ParameterError", message, kw);

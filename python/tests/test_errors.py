@@ -121,15 +121,16 @@ def test_restore_area_with_boundary_suggests_free_boundary(meshes):
     V, F = lapmesh.read_mesh(os.path.join(meshes, "elephant-with-holes.off"))
     with pytest.raises(lapmesh.ParameterError) as e:
         lapmesh.smooth(V, F, restore_area=True)
-    assert e.value.parameter == "fix_boundary" and e.value.suggested_value == "False"
+    assert e.value.parameter == "fix_boundary" and e.value.suggested_value is False
     assert "fix_boundary=False" in str(e.value)
 
 
 def test_explicit_above_bound_warns(cow):
     V, F = cow
-    with pytest.warns(lapmesh.LapmeshWarning, match="stab"):
+    with pytest.warns(lapmesh.LapmeshWarning, match="stab") as w:
         V2, report = lapmesh.smooth(V, F, scheme="explicit", lam=1.5, lambda_unit="bound", iterations=1)
     assert report["warnings"] and report["above_stability_bound"]
+    assert "(set lam='auto'" in str(w[0].message)  # the suggestions in Python's spelling
 
 
 def test_io_errors(tmp_path, cow):
