@@ -29,6 +29,7 @@ from ._lapmesh import (
     SpectralBasis,
     add_noise,
     curvatures,
+    denoise_study,
     read_mesh,
     smooth,
     write_mesh,
@@ -41,7 +42,7 @@ del _cls
 
 __all__ = [
     "Curvatures", "IoError", "LapmeshWarning", "MeshError", "NumericalError", "ParameterError",
-    "SpectralBasis", "add_noise", "curvatures", "laplacian", "laplacian_arrays", "names",
+    "SpectralBasis", "add_noise", "curvatures", "denoise_study", "describe", "laplacian", "laplacian_arrays", "names",
     "read_mesh", "smooth", "write_mesh",
 ]
 

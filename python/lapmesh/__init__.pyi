@@ -91,3 +91,20 @@ def smooth(
 def add_noise(
     V: ArrayLike, F: ArrayLike, *, level: float = ..., seed: int = ..., direction: str = ..., scale: str = ...
 ) -> Float64: ...
+def denoise_study(
+    V: ArrayLike,
+    F: ArrayLike,
+    *,
+    levels: List[float] = ...,
+    schemes: List[str] = ...,
+    laplacians: List[str] = ...,
+    lambdas: List[float] = ...,
+    lambda_unit: str = ...,
+    iterations: int = ...,
+    seed: int = ...,
+    direction: str = ...,
+    area: str = ...,
+    restore_volume: bool = ...,
+    fixed_operator: bool = ...,
+    hausdorff_spacing: float = ...,
+) -> Dict[str, Any]: ...

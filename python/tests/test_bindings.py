@@ -2,6 +2,7 @@
 so the results agree bitwise (the CLI writes 17 significant digits, read back with float())."""
 import math
 import os
+import re
 import subprocess
 import warnings
 
@@ -174,6 +175,36 @@ def test_noise_equals_cli(mesh, cli, tmp_path, options):
             args += ["--" + key, options[key]]
     cli("noise", path, "-o", out, *args, "-q")
     same(lapmesh.add_noise(V, F, **options), read_off(out)[0])
+
+
+def test_denoise_study_equals_cli(meshes, cli, tmp_path):
+    import csv
+
+    path = os.path.join(meshes, "head.off")
+    V, F = lapmesh.read_mesh(path)
+    cli("denoise-study", path, "-o", tmp_path / "s.csv", "--levels", "0,0.05", "--schemes", "explicit,implicit",
+        "--laplacians", "uniform,cotangent", "--lambdas", "0.1,3", "--iterations", 3, "--seed", 5, "-q", "--no-progress")
+    with open(tmp_path / "s.csv") as f:
+        rows = list(csv.DictReader(f))
+    r = lapmesh.denoise_study(V, F, levels=[0, 0.05], lambdas=[0.1, 3], iterations=3, seed=5)
+    assert len(rows) == len(r["iteration"]) == 2 * 2 * 2 * 2 * 4
+    unit = re.search(r"lambda_unit: str = '([\w-]+)'", lapmesh.denoise_study.__doc__).group(1)  # its default
+    columns = {"noise_level": "noise_level", "sigma": "sigma", "time_step": "lambda_" + unit, "lambda": "lambda",
+               "stability_bound": "stability_bound", "rms_distance": "rms_distance",
+               "hausdorff_distance": "hausdorff_distance", "normal_angle_error": "normal_angle_error_deg",
+               "volume_change": "volume_change"}
+    for key, name in columns.items():
+        same(r[key], [float(row[name]) for row in rows])
+    assert list(r["iteration"]) == [int(row["iteration"]) for row in rows]
+    for key in ("scheme", "laplacian", "status"):
+        assert r[key] == [row[key] for row in rows]
+    assert r["error"] == [row["error"] for row in rows]
+    with pytest.raises(lapmesh.ParameterError) as e:
+        lapmesh.denoise_study(V, F, lambdas=[0.1, -1])
+    assert e.value.parameter == "lambdas"
+    with pytest.raises(lapmesh.ParameterError) as e:
+        lapmesh.denoise_study(V, F, schemes=["implicit", "fast"])
+    assert e.value.parameter == "schemes"
 
 
 def test_laplacian_matrix(mesh):
