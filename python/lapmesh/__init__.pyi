@@ -1,6 +1,6 @@
 # Type stubs of the lapmesh package. Option defaults are the library's (shown as `...`): see
 # help(lapmesh.<function>) or `lapmesh <command> --help`; accepted names: lapmesh.names(kind).
-from typing import Any, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -52,7 +52,16 @@ def laplacian_arrays(
 ) -> Tuple[Float64, Int64, Int64, int, Float64]: ...
 
 class SpectralBasis:
-    def __init__(self, V: ArrayLike, F: ArrayLike, k: int, *, laplacian: str = ..., area: str = ...) -> None: ...
+    def __init__(
+        self,
+        V: ArrayLike,
+        F: ArrayLike,
+        k: int,
+        *,
+        laplacian: str = ...,
+        area: str = ...,
+        progress: Optional[Callable[[str, int, int, float], None]] = ...,
+    ) -> None: ...
     @property
     def values(self) -> Float64: ...
     @property
@@ -87,6 +96,7 @@ def smooth(
     restore_area: bool = ...,
     fix_boundary: bool = ...,
     reuse_factorization: bool = ...,
+    progress: Optional[Callable[[int, int], None]] = ...,
 ) -> Tuple[Float64, Dict[str, Any]]: ...
 def add_noise(
     V: ArrayLike, F: ArrayLike, *, level: float = ..., seed: int = ..., direction: str = ..., scale: str = ...

@@ -177,6 +177,20 @@ decltype(auto) with_path(const std::string& path, Function&& f)
   }
 }
 
+// A Python callable called from the computation (any thread): the GIL is taken for the call,
+// and an exception it raises propagates and stops the computation. Held through a shared_ptr
+// so that the library's copies of the callback never touch Python reference counts.
+using Callable = std::shared_ptr<py::object>;
+Callable callable(const py::object& f)
+{
+  if(f.is_none()) return nullptr;
+  if(!PyCallable_Check(f.ptr())) throw py::type_error("progress must be callable or None");
+  return std::shared_ptr<py::object>(new py::object(f), [](py::object* p) {
+    py::gil_scoped_acquire gil;
+    delete p;
+  });
+}
+
 // ---- results -------------------------------------------------------------------------------
 
 struct Curvatures
@@ -420,9 +434,14 @@ PYBIND11_MODULE(_lapmesh, m)
                     "`lapmesh reconstruct`). It may hold a few more pairs than asked for (a whole last\n"
                     "eigenspace); values and vectors give all it holds.")
     .def(py::init([](const Coordinates& V, const Indices& F, long long k, const std::string& laplacian,
-                     const std::string& area) {
+                     const std::string& area, const py::object& progress) {
            lapmesh_ops::Spectral_settings s;
            s.k = k;
+           if(Callable f = callable(progress))
+             s.progress = [f](const lapmesh::Spectral_progress& p) {
+               py::gil_scoped_acquire gil;
+               (*f)(py::str(p.stage), p.operations, p.attempt, p.elapsed_seconds);
+             };
            s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
            s.area = enum_arg<lapmesh::Vertex_area>("area", area);
            Mesh mesh = mesh_of(V, F).mesh;
@@ -435,8 +454,10 @@ PYBIND11_MODULE(_lapmesh, m)
          }),
          py::arg("V"), py::arg("F"), py::arg("k"), py::kw_only(),
          py::arg("laplacian") = default_name(spectral_defaults.laplacian),
-         py::arg("area") = default_name(spectral_defaults.area),
-         "Computes the k smallest eigenpairs (1 <= k <= number of vertices).")
+         py::arg("area") = default_name(spectral_defaults.area), py::arg("progress") = py::none(),
+         "Computes the k smallest eigenpairs (1 <= k <= number of vertices). progress, when given, is\n"
+         "called as progress(stage, solves, attempt, seconds) while the solver runs; an exception it\n"
+         "raises stops the computation and propagates.")
     .def_property_readonly("values",
                            [](const Basis& b) {
                              Eigen::VectorXd v = lapmesh_ops::contents(b.basis()).values;
@@ -544,8 +565,14 @@ PYBIND11_MODULE(_lapmesh, m)
     "smooth",
     [](const Coordinates& V, const Indices& F, const std::string& scheme, const py::object& lam,
        const std::string& lambda_unit, long long iterations, const std::string& laplacian, const std::string& area,
-       bool fixed_operator, bool restore_volume, bool restore_area, bool fix_boundary, bool reuse_factorization) {
+       bool fixed_operator, bool restore_volume, bool restore_area, bool fix_boundary, bool reuse_factorization,
+       const py::object& progress) {
       lapmesh_ops::Smooth_settings s;
+      if(Callable f = callable(progress))
+        s.progress = [f](int done, int total) {
+          py::gil_scoped_acquire gil;
+          (*f)(done, total);
+        };
       s.scheme = enum_arg<lapmesh::Smoothing_scheme>("scheme", scheme);
       const auto unit = enum_arg<lapmesh::Time_step_unit>("lambda_unit", lambda_unit);
       // A number goes through the text parser as its shortest round-trip repr: the same checks.
@@ -592,13 +619,14 @@ PYBIND11_MODULE(_lapmesh, m)
     py::arg("area") = default_name(smooth_defaults.area), py::arg("fixed_operator") = smooth_defaults.fixed_operator,
     py::arg("restore_volume") = smooth_defaults.restore_volume,
     py::arg("restore_area") = smooth_defaults.restore_area, py::arg("fix_boundary") = smooth_defaults.fix_boundary,
-    py::arg("reuse_factorization") = smooth_defaults.reuse_factorization,
+    py::arg("reuse_factorization") = smooth_defaults.reuse_factorization, py::arg("progress") = py::none(),
     "Laplacian smoothing (as `lapmesh smooth`). Returns (V2, report).\n\n"
     "scheme: see lapmesh.names('scheme'); lam: a positive time step in lambda_unit, or 'auto'\n"
     "(0.9 x the stability bound for explicit, one mean edge length squared otherwise);\n"
     "fix_boundary=False is the command line's --free-boundary. The report holds lambda (absolute),\n"
     "stability_bound (explicit; NaN otherwise), iterations, solver, timings and the warnings\n"
-    "(also issued as LapmeshWarning).");
+    "(also issued as LapmeshWarning). progress, when given, is called as progress(done, total)\n"
+    "after each iteration; an exception it raises stops the smoothing and propagates.");
 
   // ---- denoising study ----
   const lapmesh::Denoising_study_settings study_defaults;

@@ -41,6 +41,11 @@ def meshes():
     return path
 
 
+def pytest_configure(config):
+    # tornado (under distributed) on Python 3.11: not lapmesh's to fix
+    config.addinivalue_line("filterwarnings", "ignore:make_current is deprecated:DeprecationWarning")
+
+
 def pytest_sessionfinish(session, exitstatus):
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None and reporter.stats.get("skipped") and session.exitstatus == 0:
