@@ -1,7 +1,7 @@
 """Run one lapmesh operation over a folder of meshes, one task per mesh, on Dask.
 
-    python3 -m lapmesh.batch MESH_DIR OUT_DIR --task curvature|spectrum|reconstruct|smooth
-                             [--workers N | --scheduler tcp://HOST:8786 | --serial]
+    python3 -m lapmesh.batch MESH_DIR OUT_DIR --task curvature|spectrum|reconstruct|smooth|denoise-study
+                             [--workers N [--memory-limit 4GB] | --scheduler tcp://HOST:8786 | --serial]
 
 Per mesh STEM and task TASK it writes OUT_DIR/STEM.TASK.{csv,off} in the command line's
 formats (17 significant digits), atomically, then OUT_DIR/STEM.TASK.done (its summary row).
@@ -24,7 +24,7 @@ import tempfile
 import time
 
 MESH_EXTENSIONS = (".off", ".obj", ".ply", ".stl")
-TASKS = ("curvature", "spectrum", "reconstruct", "smooth")
+TASKS = ("curvature", "spectrum", "reconstruct", "smooth", "denoise-study")
 COLUMNS = ("mesh", "vertices", "faces", "status", "error", "seconds")
 
 
@@ -84,6 +84,11 @@ def process(path, out_dir, task, options):
             elif task == "reconstruct":
                 k = min(options["k"], len(V))
                 lapmesh.write_mesh(result, lapmesh.SpectralBasis(V, F, k, **shape).reconstruct(k), F)
+            elif task == "denoise-study":
+                study = {key: options[key] for key in ("levels", "schemes", "laplacians", "lambdas", "iterations",
+                                                        "seed") if options.get(key) is not None}
+                r = lapmesh.denoise_study(V, F, area=options["area"], **study)
+                _write_atomically(result, _study_csv(r, lapmesh.denoise_study.__doc__))
             elif task == "smooth":
                 V2, _ = lapmesh.smooth(V, F, scheme=options["scheme"], lam=options["lam"],
                                        iterations=options["iterations"], **shape)
@@ -98,12 +103,31 @@ def process(path, out_dir, task, options):
     return row
 
 
+def _csv_field(text):
+    return "" if not text else '"' + text.replace('"', '""').replace("\n", " ").replace("\r", " ") + '"'
+
+
+def _study_csv(r, doc):
+    """The table of `lapmesh denoise-study` (its columns and number format)."""
+    unit = doc.split("lambda_unit: str = '")[1].split("'")[0]
+    lines = ["noise_level,sigma,scheme,laplacian,lambda_%s,lambda,stability_bound,iteration,rms_distance,"
+             "hausdorff_distance,normal_angle_error_deg,volume_change,status,error" % unit]
+    for i in range(len(r["iteration"])):
+        lines.append(",".join([_g17(r["noise_level"][i]), _g17(r["sigma"][i]), r["scheme"][i], r["laplacian"][i],
+                               _g17(r["time_step"][i]), _g17(r["lambda"][i]), _g17(r["stability_bound"][i]),
+                               str(int(r["iteration"][i])), _g17(r["rms_distance"][i]),
+                               _g17(r["hausdorff_distance"][i]), _g17(r["normal_angle_error"][i]),
+                               _g17(r["volume_change"][i]), r["status"][i], _csv_field(r["error"][i])]))
+    return "\n".join(lines) + "\n"
+
+
 def find_meshes(mesh_dir):
     return sorted(os.path.join(mesh_dir, f) for f in os.listdir(mesh_dir)
                   if f.lower().endswith(MESH_EXTENSIONS) and os.path.isfile(os.path.join(mesh_dir, f)))
 
 
-def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=False, progress=None):
+def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=False, progress=None,
+        memory_limit="auto"):
     """Runs the batch; returns the summary rows (sorted by mesh) and writes summary-TASK.csv."""
     if task not in TASKS:
         raise ValueError("unknown task %r (expected one of: %s)" % (task, ", ".join(TASKS)))
@@ -134,8 +158,9 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
         if scheduler:
             client = Client(scheduler)
         else:
+            # A worker past its memory limit is restarted by its nanny: its mesh fails (KilledWorker).
             cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=None, memory_limit=memory_limit)
             client = Client(cluster)
         try:
             futures = client.map(process, todo, out_dir=out_dir, task=task, options=options, pure=False)
@@ -175,14 +200,28 @@ def main(argv=None):
     p.add_argument("--area", default=None, choices=lapmesh.names("area"))
     p.add_argument("--scheme", default=None, choices=lapmesh.names("scheme"))
     p.add_argument("--lambda", dest="lam", default="auto", help="smoothing time step or 'auto'")
-    p.add_argument("--iterations", type=int, default=1)
+    p.add_argument("--iterations", type=int, default=None, help="smoothing steps (smooth: 1; denoise-study: its default)")
+    p.add_argument("--levels", help="denoise-study: comma-separated noise levels")
+    p.add_argument("--schemes", help="denoise-study: comma-separated schemes")
+    p.add_argument("--laplacians", help="denoise-study: comma-separated Laplacians")
+    p.add_argument("--lambdas", help="denoise-study: comma-separated time steps (in its default unit)")
+    p.add_argument("--seed", type=int, default=None, help="denoise-study: the noise's seed")
+    p.add_argument("--memory-limit", default="auto", help="local cluster: memory per worker, e.g. 4GB (Dask's syntax)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="local cluster workers (default: one per core)")
     where.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://HOST:8786")
     where.add_argument("--serial", action="store_true", help="no Dask: one mesh after another in this process")
     a = p.parse_args(argv)
     # Unset options take the library's defaults (the compiled functions' own).
-    options = {"k": a.k, "iterations": a.iterations, "lam": a.lam}
+    def numbers(text):
+        return None if text is None else [float(x) for x in text.split(",")]
+
+    def words(text):
+        return None if text is None else text.split(",")
+
+    options = {"k": a.k, "lam": a.lam, "levels": numbers(a.levels), "lambdas": numbers(a.lambdas),
+               "schemes": words(a.schemes), "laplacians": words(a.laplacians), "seed": a.seed,
+               "iterations": a.iterations if a.iterations is not None else (None if a.task == "denoise-study" else 1)}
     for key in ("laplacian", "area", "scheme"):
         options[key] = getattr(a, key) if getattr(a, key) is not None else _default(key)
     tty = sys.stderr.isatty()
@@ -193,7 +232,7 @@ def main(argv=None):
             sys.stderr.flush()
 
     rows = run(a.mesh_dir, a.out_dir, a.task, options, workers=a.workers, scheduler=a.scheduler, serial=a.serial,
-               progress=progress)
+               progress=progress, memory_limit=a.memory_limit)
     counts = {}
     for r in rows:
         counts[r["status"]] = counts.get(r["status"], 0) + 1

@@ -118,3 +118,51 @@ def test_command_line(corpus, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, str(tmp_path), "--task", "spectrum",
                           "--laplacian", "nope"], capture_output=True, text=True)
     assert bad.returncode == 2 and "invalid choice" in bad.stderr
+
+
+def test_denoise_study_file_is_the_cli_csv(meshes, cli, tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    os.symlink(os.path.join(meshes, "head.off"), folder / "head.off")
+    r = subprocess.run([sys.executable, "-m", "lapmesh.batch", str(folder), str(tmp_path / "out"), "--task",
+                        "denoise-study", "--levels", "0.05", "--lambdas", "0.1,1", "--iterations", "2", "--seed", "3",
+                        "--serial"], capture_output=True, text=True, env=cli.env)
+    assert r.returncode == 0, r.stderr
+    cli("denoise-study", folder / "head.off", "-o", tmp_path / "cli.csv", "--levels", "0.05", "--lambdas", "0.1,1",
+        "--iterations", 2, "--seed", 3, "-q", "--no-progress")
+    result, _ = batch.outputs(str(tmp_path / "out"), "head", "denoise-study")
+    assert filecmp.cmp(result, tmp_path / "cli.csv", shallow=False)
+
+
+def test_killed_batch_resumes(corpus, tmp_path):
+    """A batch killed midway, run again: the meshes done before are not recomputed, the rest are."""
+    import signal
+    import time
+
+    folder, chosen = corpus
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "lapmesh.batch", folder, str(out), "--task", "spectrum", "-k", "40", "--serial"]
+    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while time.time() < deadline and p.poll() is None:
+        if out.exists() and len([f for f in os.listdir(out) if f.endswith(".done")]) >= 3:
+            break
+        time.sleep(0.005)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    done_before = {f: os.stat(out / f).st_mtime_ns for f in os.listdir(out) if f.endswith(".done")}
+    assert 3 <= len(done_before) < 12, sorted(done_before)  # killed midway
+    r = subprocess.run(args, capture_output=True, text=True)
+    assert r.returncode == 1, r.stdout + r.stderr  # the broken mesh (and any mesh the solver fails on)
+    summary = read_summary(out / "summary-spectrum.csv")
+    assert summary["zz_broken.off"]["status"] == "failed"
+    for name in chosen:
+        stem = os.path.splitext(name)[0]
+        status = summary[name]["status"]
+        if stem + ".spectrum.done" in done_before:
+            assert status == "skipped", name
+        else:
+            assert status in ("ok", "failed"), name
+        assert os.path.exists(batch.outputs(str(out), stem, "spectrum")[0]) == (status != "failed"), name
+    for f, t in done_before.items():
+        assert os.stat(out / f).st_mtime_ns == t, f + " was recomputed"
