@@ -256,3 +256,20 @@ def test_docstrings_and_stub():
     text = open(stub).read()
     for name in lapmesh.__all__:
         assert (" %s(" % name) in text or ("class %s" % name) in text, name
+
+
+def test_array_types_and_layouts(meshes):
+    V, F = lapmesh.read_mesh(os.path.join(meshes, "cow.off"))
+    c = lapmesh.curvatures(V, F)
+    for V2, F2 in [(np.asfortranarray(V), F.astype(np.int32)), (V.tolist(), F.tolist()),
+                   (np.hstack([V, V])[:, :3], F.astype(np.uint32))]:
+        same(lapmesh.curvatures(V2, F2).mean, c.mean)
+
+
+def test_repairs_are_warnings(meshes):
+    with pytest.warns(lapmesh.LapmeshWarning, match="triangulated 6 polygon"):
+        V, F = lapmesh.read_mesh(os.path.join(meshes, "cube_quad.off"))
+    assert F.shape == (12, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a consistent triangle mesh gives no warning
+        lapmesh.curvatures(V, F)
