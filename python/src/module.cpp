@@ -509,11 +509,8 @@ PYBIND11_MODULE(_lapmesh, m)
           throw py::value_error("signal must be an array of shape (n,) or (n, c)");
         const py::ssize_t rows = signal.shape(0), cols = vector ? 1 : signal.shape(1);
         Eigen::MatrixXd X(rows, cols);
-        auto at = [&](py::ssize_t i, py::ssize_t j) {
-          return *static_cast<const double*>(signal.data(i, j));
-        };
         for(py::ssize_t i = 0; i < rows; ++i)
-          for(py::ssize_t j = 0; j < cols; ++j) X(i, j) = vector ? *signal.data(i) : at(i, j);
+          for(py::ssize_t j = 0; j < cols; ++j) X(i, j) = vector ? *signal.data(i) : *signal.data(i, j);
         Eigen::MatrixXd C;
         {
           py::gil_scoped_release release;

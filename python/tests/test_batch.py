@@ -166,3 +166,16 @@ def test_killed_batch_resumes(corpus, tmp_path):
         assert os.path.exists(batch.outputs(str(out), stem, "spectrum")[0]) == (status != "failed"), name
     for f, t in done_before.items():
         assert os.stat(out / f).st_mtime_ns == t, f + " was recomputed"
+
+
+def test_running_scheduler(corpus, tmp_path):
+    """--scheduler: any running Dask scheduler (here a LocalCluster's) serves the batch."""
+    from dask.distributed import LocalCluster
+
+    folder, chosen = corpus
+    environ = dict(os.environ)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        rows = batch.run(folder, str(tmp_path), "curvature", OPTIONS, scheduler=cluster.scheduler_address)
+    os.environ.clear()
+    os.environ.update(environ)
+    assert sum(r["status"] == "ok" for r in rows) == len(chosen) and rows[-1]["status"] == "failed"
