@@ -1,6 +1,7 @@
 """lapmesh: Laplacian geometry processing on triangle meshes, for numpy arrays.
 
-Meshes are (V, F): V float64 (n, 3) vertex positions, F integer (m, 3) vertex indices.
+Meshes are (V, F): V float64 (n, 3) vertex positions, F integer (m, 3) vertex indices, or a
+lapmesh.Mesh(V, F) (validated once: pass it in place of (V, F) to skip the arrays' conversion).
 Options are keyword arguments with the names and defaults of the ``lapmesh`` command line;
 the names a kind accepts are ``lapmesh.names(kind)`` (e.g. ``names("laplacian")``).
 
@@ -23,6 +24,7 @@ from ._lapmesh import (
     Curvatures,
     IoError,
     LapmeshWarning,
+    Mesh,
     MeshError,
     NumericalError,
     ParameterError,
@@ -41,7 +43,7 @@ for _cls in (IoError, LapmeshWarning, MeshError, NumericalError, ParameterError)
 del _cls
 
 __all__ = [
-    "Curvatures", "IoError", "LapmeshWarning", "MeshError", "NumericalError", "ParameterError",
+    "Curvatures", "IoError", "LapmeshWarning", "Mesh", "MeshError", "NumericalError", "ParameterError",
     "SpectralBasis", "add_noise", "curvatures", "denoise_study", "describe", "laplacian", "laplacian_arrays", "names",
     "read_mesh", "smooth", "write_mesh",
 ]
@@ -62,14 +64,14 @@ def describe(kind):
     return dict(_lapmesh.NAMES[kind])
 
 
-def laplacian_arrays(V, F, **options):
+def laplacian_arrays(V, F=None, **options):
     """The Laplacian pencil without scipy: (data, indices, indptr, n, mass), the stiffness S
     in CSR arrays (n x n, symmetric, negative semidefinite) and the diagonal of the mass M.
     Options as laplacian()."""
     return _lapmesh._laplacian_csr(V, F, **options)
 
 
-def laplacian(V, F, **options):
+def laplacian(V, F=None, **options):
     """(S, M): the stiffness S as a scipy.sparse.csr_matrix (n x n, symmetric, rows summing to 0,
     negative semidefinite) and the mass diagonal M as a numpy array (the vertex areas for the
     cotangent Laplacian, the degrees for the uniform one). L = M^-1 S.

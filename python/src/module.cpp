@@ -164,6 +164,28 @@ lapmesh_ops::Loaded_mesh mesh_of(const Coordinates& V, const Indices& F)
   return loaded;
 }
 
+// A validated mesh kept between calls (lapmesh.Mesh): the functions take it instead of (V, F)
+// and skip the conversion and validation of the arrays.
+struct Validated_mesh
+{
+  std::shared_ptr<const Mesh> mesh;
+};
+
+// The mesh of the arguments (V, F), or V when it is a lapmesh.Mesh (F then None).
+std::shared_ptr<const Mesh> mesh_arg(const py::object& V, const py::object& F)
+{
+  if(py::isinstance<Validated_mesh>(V)) {
+    if(!F.is_none()) throw py::type_error("give a lapmesh.Mesh or the arrays (V, F), not both");
+    return V.cast<const Validated_mesh&>().mesh;
+  }
+  if(F.is_none()) throw py::type_error("F is missing: give the arrays (V, F) or a lapmesh.Mesh");
+  const Coordinates v = Coordinates::ensure(V);
+  if(!v) throw py::type_error("V must be an array of shape (n, 3) of numbers");
+  const Indices f = Indices::ensure(F);
+  if(!f) throw py::type_error("F must be an array of shape (m, 3) of integers");
+  return std::make_shared<const Mesh>(mesh_of(v, f).mesh);
+}
+
 // Runs `f` with the I/O errors prefixed by the file name (the library leaves it out).
 template <typename Function>
 decltype(auto) with_path(const std::string& path, Function&& f)
@@ -368,6 +390,35 @@ PYBIND11_MODULE(_lapmesh, m)
     "as the command line writes its results: the geometry is not validated (a reconstruction may\n"
     "have degenerate faces). Coordinates have 17 significant digits (they read back exactly).");
 
+  py::class_<Validated_mesh>(m, "Mesh",
+                             "A triangle mesh validated once (finite coordinates, indices in range, no zero-area\n"
+                             "face, manifold, consistently oriented): every function takes it in place of (V, F)\n"
+                             "and skips converting and validating the arrays again.")
+    .def(py::init([](const py::object& V, const py::object& F) { return Validated_mesh{mesh_arg(V, F)}; }),
+         py::arg("V"), py::arg("F"))
+    .def_static(
+      "read",
+      [](const std::string& path) {
+        lapmesh_ops::Loaded_mesh loaded;
+        {
+          py::gil_scoped_release release;
+          loaded = with_path(path, [&] { return lapmesh_ops::load_mesh(path); });
+        }
+        warn({}, loaded.notes);
+        return Validated_mesh{std::make_shared<const Mesh>(std::move(loaded.mesh))};
+      },
+      py::arg("path"), "Reads and validates a mesh file (as read_mesh()).")
+    .def_property_readonly("V", [](const Validated_mesh& m) { return rows_array(lapmesh_ops::positions(*m.mesh)); },
+                           "the vertex positions, float64 (n, 3) (a copy)")
+    .def_property_readonly("F", [](const Validated_mesh& m) { return faces_array(lapmesh_ops::triangles(*m.mesh)); },
+                           "the triangles, int64 (m, 3), as oriented by the validation (a copy)")
+    .def_property_readonly("num_vertices", [](const Validated_mesh& m) { return num_vertices(*m.mesh); })
+    .def_property_readonly("num_faces", [](const Validated_mesh& m) { return num_faces(*m.mesh); })
+    .def("__repr__", [](const Validated_mesh& m) {
+      return "<lapmesh.Mesh: " + std::to_string(num_vertices(*m.mesh)) + " vertices, " +
+             std::to_string(num_faces(*m.mesh)) + " faces>";
+    });
+
   // ---- curvature ----
   py::class_<Curvatures>(m, "Curvatures", "Per-vertex curvatures; entry i is vertex i.")
     .def_readonly("mean", &Curvatures::mean, "mean curvature H (positive on a sphere with outward normals)")
@@ -383,11 +434,12 @@ PYBIND11_MODULE(_lapmesh, m)
 
   m.def(
     "curvatures",
-    [](const Coordinates& V, const Indices& F, const std::string& laplacian, const std::string& area) {
+    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
       lapmesh_ops::Curvature_settings s;
       s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
       s.area = enum_arg<lapmesh::Vertex_area>("area", area);
-      const Mesh mesh = mesh_of(V, F).mesh;
+      const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
+      const Mesh& mesh = *held;
       lapmesh::Vertex_curvatures c;
       {
         py::gil_scoped_release release;
@@ -398,18 +450,19 @@ PYBIND11_MODULE(_lapmesh, m)
                         vector_array(std::move(c.area)), rows_array(std::move(c.normal)),
                         rows_array(std::move(c.laplacian))};
     },
-    py::arg("V"), py::arg("F"), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
+    py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
     py::arg("area") = default_name(curvature_defaults.area),
     "Mean, Gaussian and principal curvatures per vertex (as `lapmesh curvature`).\n\n"
     "laplacian: see lapmesh.names('laplacian'); area: see lapmesh.names('area').");
 
   m.def(
     "_laplacian_csr",
-    [](const Coordinates& V, const Indices& F, const std::string& laplacian, const std::string& area) {
+    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
       lapmesh_ops::Curvature_settings s;
       s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
       s.area = enum_arg<lapmesh::Vertex_area>("area", area);
-      const Mesh mesh = mesh_of(V, F).mesh;
+      const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
+      const Mesh& mesh = *held;
       lapmesh_ops::Csr_laplacian L;
       {
         py::gil_scoped_release release;
@@ -424,7 +477,7 @@ PYBIND11_MODULE(_lapmesh, m)
       std::copy(S.outerIndexPtr(), S.outerIndexPtr() + n + 1, indptr.mutable_data());
       return py::make_tuple(data, indices, indptr, n, vector_array(std::move(L.mass)));
     },
-    py::arg("V"), py::arg("F"), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
+    py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
     py::arg("area") = default_name(curvature_defaults.area),
     "(data, indices, indptr, n, mass): the stiffness S in CSR arrays and the diagonal of M.");
 
@@ -433,8 +486,15 @@ PYBIND11_MODULE(_lapmesh, m)
                     "The k smallest eigenpairs of -S phi = lambda M phi (as `lapmesh spectrum` and\n"
                     "`lapmesh reconstruct`). It may hold a few more pairs than asked for (a whole last\n"
                     "eigenspace); values and vectors give all it holds.")
-    .def(py::init([](const Coordinates& V, const Indices& F, long long k, const std::string& laplacian,
+    .def(py::init([](const py::object& V, py::object F, std::optional<long long> k_arg, const std::string& laplacian,
                      const std::string& area, const py::object& progress) {
+           // SpectralBasis(mesh, k): with a lapmesh.Mesh, the second positional argument is k.
+           if(py::isinstance<Validated_mesh>(V) && !k_arg && py::isinstance<py::int_>(F)) {
+             k_arg = F.cast<long long>();
+             F = py::none();
+           }
+           if(!k_arg) throw py::type_error("k is missing: SpectralBasis(V, F, k) or SpectralBasis(mesh, k)");
+           const long long k = *k_arg;
            lapmesh_ops::Spectral_settings s;
            s.k = k;
            if(Callable f = callable(progress))
@@ -444,7 +504,7 @@ PYBIND11_MODULE(_lapmesh, m)
              };
            s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
            s.area = enum_arg<lapmesh::Vertex_area>("area", area);
-           Mesh mesh = mesh_of(V, F).mesh;
+           Mesh mesh = *mesh_arg(V, F);
            std::shared_ptr<const lapmesh::Spectral_basis> b;
            {
              py::gil_scoped_release release;
@@ -452,7 +512,7 @@ PYBIND11_MODULE(_lapmesh, m)
            }
            return Basis(std::move(b), std::move(mesh));
          }),
-         py::arg("V"), py::arg("F"), py::arg("k"), py::kw_only(),
+         py::arg("V"), py::arg("F") = py::none(), py::arg("k") = py::none(), py::kw_only(),
          py::arg("laplacian") = default_name(spectral_defaults.laplacian),
          py::arg("area") = default_name(spectral_defaults.area), py::arg("progress") = py::none(),
          "Computes the k smallest eigenpairs (1 <= k <= number of vertices). progress, when given, is\n"
@@ -533,16 +593,17 @@ PYBIND11_MODULE(_lapmesh, m)
       py::arg("path"), "Writes the basis (binary, the file of `lapmesh reconstruct --save-basis`), atomically.")
     .def_static(
       "load",
-      [](const std::string& path, std::optional<Coordinates> V, std::optional<Indices> F) {
-        if(V.has_value() != F.has_value()) throw py::value_error("give both V and F, or neither");
+      [](const std::string& path, const py::object& V, const py::object& F) {
+        if(!py::isinstance<Validated_mesh>(V) && V.is_none() != F.is_none())
+          throw py::value_error("give both V and F, a lapmesh.Mesh, or nothing");
         std::shared_ptr<const lapmesh::Spectral_basis> b;
         {
           py::gil_scoped_release release;
           b = with_path(path, [&] { return lapmesh_ops::load_basis(path); });
         }
         std::optional<Mesh> mesh;
-        if(V) {
-          mesh = mesh_of(*V, *F).mesh;
+        if(!V.is_none()) {
+          mesh = *mesh_arg(V, F);
           lapmesh_ops::check_basis_fits(*b, *mesh);
         }
         return Basis(std::move(b), std::move(mesh));
@@ -560,7 +621,7 @@ PYBIND11_MODULE(_lapmesh, m)
   // ---- smoothing ----
   m.def(
     "smooth",
-    [](const Coordinates& V, const Indices& F, const std::string& scheme, const py::object& lam,
+    [](const py::object& V, const py::object& F, const std::string& scheme, const py::object& lam,
        const std::string& lambda_unit, long long iterations, const std::string& laplacian, const std::string& area,
        bool fixed_operator, bool restore_volume, bool restore_area, bool fix_boundary, bool reuse_factorization,
        const py::object& progress) {
@@ -587,7 +648,7 @@ PYBIND11_MODULE(_lapmesh, m)
       s.fix_boundary = fix_boundary;
       s.reuse_factorization = reuse_factorization;
       lapmesh_ops::check(s);
-      Mesh mesh = mesh_of(V, F).mesh;
+      Mesh mesh = *mesh_arg(V, F);
       lapmesh_ops::Smooth_result r;
       {
         py::gil_scoped_release release;
@@ -610,7 +671,7 @@ PYBIND11_MODULE(_lapmesh, m)
       report["warnings"] = warning_texts(r.warnings);
       return py::make_tuple(rows_array(lapmesh_ops::positions(mesh)), report);
     },
-    py::arg("V"), py::arg("F"), py::kw_only(), py::arg("scheme") = default_name(smooth_defaults.scheme),
+    py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("scheme") = default_name(smooth_defaults.scheme),
     py::arg("lam") = "auto", py::arg("lambda_unit") = default_name(smooth_defaults.lambda.unit),
     py::arg("iterations") = smooth_defaults.iterations, py::arg("laplacian") = default_name(smooth_defaults.laplacian),
     py::arg("area") = default_name(smooth_defaults.area), py::arg("fixed_operator") = smooth_defaults.fixed_operator,
@@ -634,7 +695,7 @@ PYBIND11_MODULE(_lapmesh, m)
   };
   m.def(
     "denoise_study",
-    [](const Coordinates& V, const Indices& F, const std::vector<double>& levels,
+    [](const py::object& V, const py::object& F, const std::vector<double>& levels,
        const std::vector<std::string>& schemes, const std::vector<std::string>& laplacians,
        const std::vector<double>& lambdas, const std::string& lambda_unit, int iterations, std::uint64_t seed,
        const std::string& direction, const std::string& area, bool restore_volume, bool fixed_operator,
@@ -669,7 +730,8 @@ PYBIND11_MODULE(_lapmesh, m)
       s.fixed_operator = fixed_operator;
       s.hausdorff_spacing = hausdorff_spacing;
       lapmesh_ops::check(s);
-      const Mesh mesh = mesh_of(V, F).mesh;
+      const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
+      const Mesh& mesh = *held;
       lapmesh::Denoising_study study;
       {
         py::gil_scoped_release release;
@@ -709,7 +771,7 @@ PYBIND11_MODULE(_lapmesh, m)
       out["error"] = error;
       return out;
     },
-    py::arg("V"), py::arg("F"), py::kw_only(), py::arg("levels") = study_defaults.noise_levels,
+    py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("levels") = study_defaults.noise_levels,
     py::arg("schemes") = names_of(study_defaults.schemes), py::arg("laplacians") = names_of(study_defaults.laplacians),
     py::arg("lambdas") = study_defaults.time_steps, py::arg("lambda_unit") = default_name(study_defaults.unit),
     py::arg("iterations") = study_defaults.iterations, py::arg("seed") = study_defaults.seed,
@@ -727,7 +789,7 @@ PYBIND11_MODULE(_lapmesh, m)
   // ---- noise ----
   m.def(
     "add_noise",
-    [](const Coordinates& V, const Indices& F, double level, std::uint64_t seed, const std::string& direction,
+    [](const py::object& V, const py::object& F, double level, std::uint64_t seed, const std::string& direction,
        const std::string& scale) {
       lapmesh_ops::Noise_settings s;
       s.level = level;
@@ -735,14 +797,14 @@ PYBIND11_MODULE(_lapmesh, m)
       s.direction = enum_arg<lapmesh::Noise_direction>("direction", direction);
       s.scale = enum_arg<lapmesh::Noise_scale>("scale", scale);
       lapmesh_ops::check(s);
-      Mesh mesh = mesh_of(V, F).mesh;
+      Mesh mesh = *mesh_arg(V, F);
       {
         py::gil_scoped_release release;
         lapmesh_ops::add_noise(mesh, s);
       }
       return rows_array(lapmesh_ops::positions(mesh));
     },
-    py::arg("V"), py::arg("F"), py::kw_only(), py::arg("level") = noise_defaults.level,
+    py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("level") = noise_defaults.level,
     py::arg("seed") = noise_defaults.seed, py::arg("direction") = default_name(noise_defaults.direction),
     py::arg("scale") = default_name(noise_defaults.scale),
     "Seeded Gaussian vertex noise (as `lapmesh noise`): sigma = level x the scale's length.\n"

@@ -273,3 +273,33 @@ def test_repairs_are_warnings(meshes):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a consistent triangle mesh gives no warning
         lapmesh.curvatures(V, F)
+
+
+def test_mesh_object_gives_the_same_results(meshes, tmp_path):
+    path = os.path.join(meshes, "cow.off")
+    V, F = lapmesh.read_mesh(path)
+    mesh = lapmesh.Mesh(V, F)
+    assert (mesh.num_vertices, mesh.num_faces) == (len(V), len(F)) and "2904 vertices" in repr(mesh)
+    same(mesh.V, V)
+    assert np.array_equal(mesh.F, F)
+    read = lapmesh.Mesh.read(path)
+    same(read.V, V)
+    same(lapmesh.curvatures(mesh, area="mixed").gaussian, lapmesh.curvatures(V, F, area="mixed").gaussian)
+    same(lapmesh.smooth(mesh, iterations=2)[0], lapmesh.smooth(V, F, iterations=2)[0])
+    same(lapmesh.add_noise(mesh, level=0.1, seed=3), lapmesh.add_noise(V, F, level=0.1, seed=3))
+    same(lapmesh.laplacian(mesh)[0].data, lapmesh.laplacian(V, F)[0].data)
+    basis = lapmesh.SpectralBasis(mesh, 8)
+    same(basis.values, lapmesh.SpectralBasis(V, F, k=8).values)
+    same(lapmesh.SpectralBasis(mesh, k=8).reconstruct(8), basis.reconstruct(8))
+    basis.save(str(tmp_path / "b"))
+    same(lapmesh.SpectralBasis.load(str(tmp_path / "b"), mesh).reconstruct(5), basis.reconstruct(5))
+    with pytest.raises(TypeError, match="not both"):
+        lapmesh.curvatures(mesh, F)
+    with pytest.raises(TypeError, match="F is missing"):
+        lapmesh.curvatures(V)
+    with pytest.raises(TypeError, match="k is missing"):
+        lapmesh.SpectralBasis(mesh)
+    bad = V.copy()
+    bad[3, 0] = np.inf
+    with pytest.raises(lapmesh.MeshError):
+        lapmesh.Mesh(bad, F)
