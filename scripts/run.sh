@@ -17,7 +17,8 @@ PACKAGES=(build-essential cmake ccache pkg-config doxygen
           libcgal-dev libcgal-demo libgmp-dev libmpfr-dev libboost-dev
           libeigen3-dev libspectra-dev libsuitesparse-dev libopenblas0 libtbb-dev
           libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
-          libcpp-httplib-dev nlohmann-json3-dev chromium)
+          libcpp-httplib-dev nlohmann-json3-dev chromium
+          pybind11-dev python3-dev python3-numpy python3-scipy python3-pytest python3-dask python3-distributed)
 
 # The fuzzers need clang's libFuzzer: installed by `sanitize` only, to keep `demo` quick.
 FUZZ_PACKAGES=(clang libclang-rt-14-dev)

@@ -1,0 +1,256 @@
+"""Run one lapmesh operation over a folder of meshes, one task per mesh, on Dask.
+
+    python3 -m lapmesh.batch MESH_DIR OUT_DIR --task curvature|spectrum|reconstruct|smooth|denoise-study
+                             [--workers N [--memory-limit 4GB] | --scheduler tcp://HOST:8786 | --serial]
+
+Per mesh STEM and task TASK it writes OUT_DIR/STEM.TASK.{csv,off} in the command line's
+formats (17 significant digits), atomically, then OUT_DIR/STEM.TASK.done (its summary row).
+A mesh that fails is recorded (status failed, the error message) and the others go on. A
+second run skips the meshes whose .done file exists, so a killed batch resumes where it
+stopped. The summary is OUT_DIR/summary-TASK.csv: mesh, vertices, faces, status, error, seconds.
+
+Dask's workers run BLAS and OpenMP on one thread (distributed's distributed.nanny.pre-spawn-environ:
+OMP_NUM_THREADS=1, OPENBLAS_NUM_THREADS=1). The sparse Cholesky and the block Lanczos round
+differently with another thread count, so the spectral and implicit-smoothing outputs are those
+of a serial run (--serial, or the command line) with the same variables, bit for bit.
+"""
+import argparse
+import csv
+import io
+import json
+import os
+import sys
+import tempfile
+import time
+
+MESH_EXTENSIONS = (".off", ".obj", ".ply", ".stl")
+TASKS = ("curvature", "spectrum", "reconstruct", "smooth", "denoise-study")
+COLUMNS = ("mesh", "vertices", "faces", "status", "error", "seconds")
+
+
+def _write_atomically(path, data):
+    """Writes `data` (str) to `path` through a temporary file in the same folder and a rename."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix="-" + os.path.basename(path))
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _g17(x):
+    return "%.17g" % x
+
+
+def outputs(out_dir, stem, task):
+    """(result file, completion file) of a mesh."""
+    ext = "off" if task in ("reconstruct", "smooth") else "csv"
+    return (os.path.join(out_dir, "%s.%s.%s" % (stem, task, ext)), os.path.join(out_dir, "%s.%s.done" % (stem, task)))
+
+
+def process(path, out_dir, task, options):
+    """Runs `task` on the mesh at `path`; returns its summary row (never raises)."""
+    import lapmesh
+    import warnings
+
+    stem = os.path.splitext(os.path.basename(path))[0]
+    result, done = outputs(out_dir, stem, task)
+    row = {"mesh": os.path.basename(path), "vertices": "", "faces": "", "status": "ok", "error": "", "seconds": ""}
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lapmesh.LapmeshWarning)
+            V, F = lapmesh.read_mesh(path)
+            row["vertices"], row["faces"] = len(V), len(F)
+            shape = dict(laplacian=options["laplacian"], area=options["area"])
+            if task == "curvature":
+                c = lapmesh.curvatures(V, F, **shape)
+                text = io.StringIO()
+                text.write("vertex,mean,gaussian,k1,k2\n")
+                for i, values in enumerate(zip(c.mean, c.gaussian, c.k1, c.k2)):
+                    text.write("%d,%s\n" % (i, ",".join(map(_g17, values))))
+                _write_atomically(result, text.getvalue())
+            elif task == "spectrum":
+                k = min(options["k"], len(V))
+                values = lapmesh.SpectralBasis(V, F, k, **shape).values[:k]
+                _write_atomically(result, "index,eigenvalue\n" + "".join(
+                    "%d,%s\n" % (i, _g17(x)) for i, x in enumerate(values)))
+            elif task == "reconstruct":
+                k = min(options["k"], len(V))
+                lapmesh.write_mesh(result, lapmesh.SpectralBasis(V, F, k, **shape).reconstruct(k), F)
+            elif task == "denoise-study":
+                study = {key: options[key] for key in ("levels", "schemes", "laplacians", "lambdas", "iterations",
+                                                        "seed") if options.get(key) is not None}
+                r = lapmesh.denoise_study(V, F, area=options["area"], **study)
+                _write_atomically(result, _study_csv(r, lapmesh.denoise_study.__doc__))
+            elif task == "smooth":
+                V2, _ = lapmesh.smooth(V, F, scheme=options["scheme"], lam=options["lam"],
+                                       iterations=options["iterations"], **shape)
+                lapmesh.write_mesh(result, V2, F)
+            else:
+                raise ValueError("unknown task %r" % task)
+    except Exception as e:  # recorded, never stops the batch
+        row["status"], row["error"] = "failed", "%s: %s" % (type(e).__name__, e)
+    row["seconds"] = round(time.perf_counter() - start, 6)
+    if row["status"] == "ok":
+        _write_atomically(done, json.dumps(row))
+    return row
+
+
+def _csv_field(text):
+    return "" if not text else '"' + text.replace('"', '""').replace("\n", " ").replace("\r", " ") + '"'
+
+
+def _study_csv(r, doc):
+    """The table of `lapmesh denoise-study` (its columns and number format)."""
+    unit = doc.split("lambda_unit: str = '")[1].split("'")[0]
+    lines = ["noise_level,sigma,scheme,laplacian,lambda_%s,lambda,stability_bound,iteration,rms_distance,"
+             "hausdorff_distance,normal_angle_error_deg,volume_change,status,error" % unit]
+    for i in range(len(r["iteration"])):
+        lines.append(",".join([_g17(r["noise_level"][i]), _g17(r["sigma"][i]), r["scheme"][i], r["laplacian"][i],
+                               _g17(r["time_step"][i]), _g17(r["lambda"][i]), _g17(r["stability_bound"][i]),
+                               str(int(r["iteration"][i])), _g17(r["rms_distance"][i]),
+                               _g17(r["hausdorff_distance"][i]), _g17(r["normal_angle_error"][i]),
+                               _g17(r["volume_change"][i]), r["status"][i], _csv_field(r["error"][i])]))
+    return "\n".join(lines) + "\n"
+
+
+def find_meshes(mesh_dir):
+    return sorted(os.path.join(mesh_dir, f) for f in os.listdir(mesh_dir)
+                  if f.lower().endswith(MESH_EXTENSIONS) and os.path.isfile(os.path.join(mesh_dir, f)))
+
+
+def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=False, progress=None,
+        memory_limit="auto"):
+    """Runs the batch; returns the summary rows (sorted by mesh) and writes summary-TASK.csv."""
+    if task not in TASKS:
+        raise ValueError("unknown task %r (expected one of: %s)" % (task, ", ".join(TASKS)))
+    os.makedirs(out_dir, exist_ok=True)
+    rows, todo = [], []
+    for path in find_meshes(mesh_dir):
+        stem = os.path.splitext(os.path.basename(path))[0]
+        result, done = outputs(out_dir, stem, task)
+        if os.path.exists(done) and os.path.exists(result):
+            with open(done) as f:
+                row = json.load(f)
+            row["status"] = "skipped"  # completed by an earlier run
+            rows.append(row)
+        else:
+            todo.append(path)
+    if serial:
+        for i, path in enumerate(todo):
+            rows.append(process(path, out_dir, task, options))
+            if progress:
+                progress(i + 1, len(todo))
+    elif todo:
+        from dask.distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        # distributed's nannies write their pre-spawn environment (OMP_NUM_THREADS=1, ...) into
+        # this process's os.environ: it is restored afterwards, for the caller's later children.
+        environ = dict(os.environ)
+        if scheduler:
+            client = Client(scheduler)
+        else:
+            # A worker past its memory limit is restarted by its nanny: its mesh fails (KilledWorker).
+            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
+                                   dashboard_address=None, memory_limit=memory_limit)
+            client = Client(cluster)
+        try:
+            futures = client.map(process, todo, out_dir=out_dir, task=task, options=options, pure=False)
+            for i, future in enumerate(as_completed(futures)):
+                try:
+                    rows.append(future.result())
+                except Exception as e:  # a worker died (memory limit, kill): the mesh fails, the batch goes on
+                    path = todo[futures.index(future)]
+                    rows.append({"mesh": os.path.basename(path), "vertices": "", "faces": "", "status": "failed",
+                                 "error": "%s: %s" % (type(e).__name__, e), "seconds": ""})
+                if progress:
+                    progress(i + 1, len(todo))
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+            os.environ.clear()
+            os.environ.update(environ)
+    rows.sort(key=lambda r: r["mesh"])
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    _write_atomically(os.path.join(out_dir, "summary-%s.csv" % task), text.getvalue())
+    return rows
+
+
+def main(argv=None):
+    import lapmesh
+
+    p = argparse.ArgumentParser(prog="python3 -m lapmesh.batch", description=__doc__.split("\n\n")[0])
+    p.add_argument("mesh_dir")
+    p.add_argument("out_dir")
+    p.add_argument("--task", required=True, choices=TASKS)
+    p.add_argument("-k", type=int, default=30, help="eigenpairs (spectrum, reconstruct; at most the vertices)")
+    p.add_argument("--laplacian", default=None, choices=lapmesh.names("laplacian"))
+    p.add_argument("--area", default=None, choices=lapmesh.names("area"))
+    p.add_argument("--scheme", default=None, choices=lapmesh.names("scheme"))
+    p.add_argument("--lambda", dest="lam", default="auto", help="smoothing time step or 'auto'")
+    p.add_argument("--iterations", type=int, default=None, help="smoothing steps (smooth: 1; denoise-study: its default)")
+    p.add_argument("--levels", help="denoise-study: comma-separated noise levels")
+    p.add_argument("--schemes", help="denoise-study: comma-separated schemes")
+    p.add_argument("--laplacians", help="denoise-study: comma-separated Laplacians")
+    p.add_argument("--lambdas", help="denoise-study: comma-separated time steps (in its default unit)")
+    p.add_argument("--seed", type=int, default=None, help="denoise-study: the noise's seed")
+    p.add_argument("--memory-limit", default="auto", help="local cluster: memory per worker, e.g. 4GB (Dask's syntax)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="local cluster workers (default: one per core)")
+    where.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://HOST:8786")
+    where.add_argument("--serial", action="store_true", help="no Dask: one mesh after another in this process")
+    a = p.parse_args(argv)
+    # Unset options take the library's defaults (the compiled functions' own).
+    def numbers(text):
+        return None if text is None else [float(x) for x in text.split(",")]
+
+    def words(text):
+        return None if text is None else text.split(",")
+
+    options = {"k": a.k, "lam": a.lam, "levels": numbers(a.levels), "lambdas": numbers(a.lambdas),
+               "schemes": words(a.schemes), "laplacians": words(a.laplacians), "seed": a.seed,
+               "iterations": a.iterations if a.iterations is not None else (None if a.task == "denoise-study" else 1)}
+    for key in ("laplacian", "area", "scheme"):
+        options[key] = getattr(a, key) if getattr(a, key) is not None else _default(key)
+    tty = sys.stderr.isatty()
+
+    def progress(done, total):
+        if tty:
+            sys.stderr.write("\r%d/%d meshes" % (done, total) + ("\n" if done == total else ""))
+            sys.stderr.flush()
+
+    rows = run(a.mesh_dir, a.out_dir, a.task, options, workers=a.workers, scheduler=a.scheduler, serial=a.serial,
+               progress=progress, memory_limit=a.memory_limit)
+    counts = {}
+    for r in rows:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    print("%d meshes: %s; summary in %s" % (len(rows), ", ".join("%d %s" % (n, s) for s, n in sorted(counts.items())),
+                                             os.path.join(a.out_dir, "summary-%s.csv" % a.task)))
+    return 1 if counts.get("failed") else 0
+
+
+def _default(key):
+    """The default of an option as the compiled module's signature shows it."""
+    import lapmesh
+
+    fn = lapmesh.smooth
+    signature = fn.__doc__.splitlines()[0]
+    marker = "%s: str = '" % key
+    start = signature.index(marker) + len(marker)
+    return signature[start:signature.index("'", start)]
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,53 @@
+"""Fixtures of the lapmesh Python tests: the CLI binary and CGAL's meshes (from the
+environment ctest sets), and a rule that a skipped test fails the run: a missing
+dependency must not pass for a success."""
+import os
+import subprocess
+
+import pytest
+
+# The environment the tests started with: the command line runs in it even after a Dask
+# LocalCluster wrote its workers' settings (OMP_NUM_THREADS=1, ...) into os.environ, so that
+# it uses as many BLAS threads as this process (the thread count changes the rounding).
+START_ENVIRONMENT = dict(os.environ)
+
+
+def _required_env(name):
+    value = os.environ.get(name)
+    if not value:
+        raise RuntimeError(name + " is not set: run these tests through ctest (ctest -R python)")
+    return value
+
+
+@pytest.fixture(scope="session")
+def cli():
+    path = _required_env("LAPMESH_CLI")
+    assert os.access(path, os.X_OK), "the lapmesh command line is not built: " + path
+
+    def run(*args):
+        r = subprocess.run([path, *map(str, args)], capture_output=True, text=True, env=START_ENVIRONMENT)
+        assert r.returncode == 0, "lapmesh %s failed: %s" % (" ".join(map(str, args)), r.stderr)
+        return r
+
+    run.path = path
+    run.env = START_ENVIRONMENT
+    return run
+
+
+@pytest.fixture(scope="session")
+def meshes():
+    path = _required_env("LAPMESH_MESHES")
+    assert os.path.exists(os.path.join(path, "cow.off")), "CGAL's data set is missing (install libcgal-demo): " + path
+    return path
+
+
+def pytest_configure(config):
+    # tornado (under distributed) on Python 3.11: not lapmesh's to fix
+    config.addinivalue_line("filterwarnings", "ignore:make_current is deprecated:DeprecationWarning")
+
+
+def pytest_sessionfinish(session, exitstatus):
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None and reporter.stats.get("skipped") and session.exitstatus == 0:
+        reporter.write_line("lapmesh: skipped tests count as failures (a dependency is missing)", red=True)
+        session.exitstatus = 1

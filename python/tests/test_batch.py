@@ -1,0 +1,181 @@
+"""python3 -m lapmesh.batch: a local Dask cluster of 2 worker processes gives the serial run's
+outputs byte for byte; a broken mesh is reported while the others finish; a re-run skips what
+is complete and redoes only what is missing."""
+import csv
+import filecmp
+import os
+import subprocess
+import sys
+
+import pytest
+
+from lapmesh import batch
+
+
+def off_vertices(path):
+    with open(path) as f:
+        tokens = f.read(4096).split()
+    return int(tokens[1]) if tokens and tokens[0] == "OFF" else -1
+
+
+@pytest.fixture(scope="module")
+def corpus(meshes, tmp_path_factory):
+    """12 small meshes of CGAL's data set (every kind the folder has: closed, open, polygons) and a broken one."""
+    folder = tmp_path_factory.mktemp("corpus")
+    chosen = [f for f in sorted(os.listdir(meshes))
+              if f.endswith(".off") and 10 <= off_vertices(os.path.join(meshes, f)) <= 3000][:12]
+    assert len(chosen) == 12, chosen
+    for f in chosen:
+        os.symlink(os.path.join(meshes, f), folder / f)
+    (folder / "zz_broken.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\nnan 0 0\n3 0 1 2\n")
+    return str(folder), chosen
+
+
+def read_summary(path):
+    with open(path) as f:
+        return {row["mesh"]: row for row in csv.DictReader(f)}
+
+
+OPTIONS = dict(k=10, laplacian="cotangent", area="barycentric", scheme="implicit", lam="auto", iterations=2)
+
+
+def serial_run(folder, out, task):
+    """The batch with --serial in a process with the Dask workers' environment (their BLAS and
+    OpenMP thread counts: the rounding of the spectral solver depends on them)."""
+    import dask
+    import distributed  # noqa: F401 (loads distributed's configuration)
+
+    env = dict(os.environ)
+    env.update({k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()})
+    r = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, out, "--task", task, "-k", str(OPTIONS["k"]),
+                        "--serial"], capture_output=True, text=True, env=env)
+    assert r.returncode == 1, r.stderr  # the broken mesh fails
+    return [dict(row, vertices=int(row["vertices"] or 0) or "", faces=int(row["faces"] or 0) or "")
+            for row in read_summary(os.path.join(out, "summary-%s.csv" % task)).values()]
+
+
+@pytest.mark.parametrize("task", ["curvature", "reconstruct"])
+def test_dask_equals_serial(corpus, tmp_path, task):
+    folder, chosen = corpus
+    environ = dict(os.environ)
+    serial = serial_run(folder, str(tmp_path / "serial"), task)
+    dask = batch.run(folder, str(tmp_path / "dask"), task, OPTIONS, workers=2)
+    assert dict(os.environ) == environ  # the cluster's settings do not leak into this process
+    assert [r["mesh"] for r in serial] == [r["mesh"] for r in dask] == chosen + ["zz_broken.off"]
+    for s, d in zip(serial, dask):
+        assert (s["status"], s["vertices"], s["faces"]) == (d["status"], d["vertices"], d["faces"])
+        assert s["error"] == d["error"]
+        if s["status"] == "ok":
+            result, _ = batch.outputs(str(tmp_path / "serial"), os.path.splitext(s["mesh"])[0], task)
+            other, _ = batch.outputs(str(tmp_path / "dask"), os.path.splitext(s["mesh"])[0], task)
+            assert filecmp.cmp(result, other, shallow=False), result
+    assert sum(r["status"] == "ok" for r in dask) >= 10  # (a mesh may fail on its own, e.g. a solver error)
+    broken = dask[-1]
+    assert broken["status"] == "failed" and "MeshError" in broken["error"] and "non-finite" in broken["error"]
+    summary = read_summary(tmp_path / "dask" / ("summary-%s.csv" % task))
+    assert set(summary) == set(chosen) | {"zz_broken.off"}
+    assert list(next(iter(summary.values()))) == list(batch.COLUMNS)
+
+
+def test_curvature_file_is_the_cli_csv(corpus, cli, tmp_path):
+    folder, chosen = corpus
+    batch.run(folder, str(tmp_path), "curvature", OPTIONS, serial=True)
+    for name in chosen[:3]:
+        cli("curvature", os.path.join(folder, name), "-o", tmp_path / "cli.csv", "-q")
+        result, _ = batch.outputs(str(tmp_path), os.path.splitext(name)[0], "curvature")
+        assert filecmp.cmp(result, tmp_path / "cli.csv", shallow=False), name
+
+
+def test_rerun_skips_completed_meshes(corpus, tmp_path):
+    folder, chosen = corpus
+    out = str(tmp_path)
+    batch.run(folder, out, "curvature", OPTIONS, serial=True)
+    # a batch killed before one mesh finished: its outputs are missing, a temporary file may remain
+    stem = os.path.splitext(chosen[4])[0]
+    result, done = batch.outputs(out, stem, "curvature")
+    os.unlink(done)
+    os.unlink(result)
+    (tmp_path / (".tmp-xyz-" + os.path.basename(result))).write_text("partial")
+    before = {f: os.stat(os.path.join(out, f)).st_mtime_ns for f in os.listdir(out) if f.endswith(".csv") and not f.startswith("summary")}
+    rows = {r["mesh"]: r for r in batch.run(folder, out, "curvature", OPTIONS, workers=2)}
+    assert rows[chosen[4]]["status"] == "ok"
+    assert all(rows[m]["status"] == "skipped" for m in chosen if m != chosen[4])
+    assert rows["zz_broken.off"]["status"] == "failed"
+    for f, t in before.items():
+        assert os.stat(os.path.join(out, f)).st_mtime_ns == t, f + " was recomputed"
+    assert os.path.exists(result)
+
+
+def test_command_line(corpus, tmp_path):
+    folder, chosen = corpus
+    r = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, str(tmp_path), "--task", "spectrum", "-k", "5",
+                        "--serial"], capture_output=True, text=True)
+    assert r.returncode == 1, r.stderr  # the broken mesh
+    assert "13 meshes: 1 failed, 12 ok" in r.stdout, r.stdout
+    with open(batch.outputs(str(tmp_path), os.path.splitext(chosen[0])[0], "spectrum")[0]) as f:
+        lines = f.read().splitlines()
+    assert lines[0] == "index,eigenvalue" and len(lines) == 6
+    bad = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, str(tmp_path), "--task", "spectrum",
+                          "--laplacian", "nope"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "invalid choice" in bad.stderr
+
+
+def test_denoise_study_file_is_the_cli_csv(meshes, cli, tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    os.symlink(os.path.join(meshes, "head.off"), folder / "head.off")
+    r = subprocess.run([sys.executable, "-m", "lapmesh.batch", str(folder), str(tmp_path / "out"), "--task",
+                        "denoise-study", "--levels", "0.05", "--lambdas", "0.1,1", "--iterations", "2", "--seed", "3",
+                        "--serial"], capture_output=True, text=True, env=cli.env)
+    assert r.returncode == 0, r.stderr
+    cli("denoise-study", folder / "head.off", "-o", tmp_path / "cli.csv", "--levels", "0.05", "--lambdas", "0.1,1",
+        "--iterations", 2, "--seed", 3, "-q", "--no-progress")
+    result, _ = batch.outputs(str(tmp_path / "out"), "head", "denoise-study")
+    assert filecmp.cmp(result, tmp_path / "cli.csv", shallow=False)
+
+
+def test_killed_batch_resumes(corpus, tmp_path):
+    """A batch killed midway, run again: the meshes done before are not recomputed, the rest are."""
+    import signal
+    import time
+
+    folder, chosen = corpus
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "lapmesh.batch", folder, str(out), "--task", "spectrum", "-k", "40", "--serial"]
+    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while time.time() < deadline and p.poll() is None:
+        if out.exists() and len([f for f in os.listdir(out) if f.endswith(".done")]) >= 3:
+            break
+        time.sleep(0.005)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    done_before = {f: os.stat(out / f).st_mtime_ns for f in os.listdir(out) if f.endswith(".done")}
+    assert 3 <= len(done_before) < 12, sorted(done_before)  # killed midway
+    r = subprocess.run(args, capture_output=True, text=True)
+    assert r.returncode == 1, r.stdout + r.stderr  # the broken mesh (and any mesh the solver fails on)
+    summary = read_summary(out / "summary-spectrum.csv")
+    assert summary["zz_broken.off"]["status"] == "failed"
+    for name in chosen:
+        stem = os.path.splitext(name)[0]
+        status = summary[name]["status"]
+        if stem + ".spectrum.done" in done_before:
+            assert status == "skipped", name
+        else:
+            assert status in ("ok", "failed"), name
+        assert os.path.exists(batch.outputs(str(out), stem, "spectrum")[0]) == (status != "failed"), name
+    for f, t in done_before.items():
+        assert os.stat(out / f).st_mtime_ns == t, f + " was recomputed"
+
+
+def test_running_scheduler(corpus, tmp_path):
+    """--scheduler: any running Dask scheduler (here a LocalCluster's) serves the batch."""
+    from dask.distributed import LocalCluster
+
+    folder, chosen = corpus
+    environ = dict(os.environ)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        rows = batch.run(folder, str(tmp_path), "curvature", OPTIONS, scheduler=cluster.scheduler_address)
+    os.environ.clear()
+    os.environ.update(environ)
+    assert sum(r["status"] == "ok" for r in rows) == len(chosen) and rows[-1]["status"] == "failed"
