@@ -40,10 +40,15 @@ setup() {
   fi
 }
 
+# build [TARGET...]: configure and build the given targets (all of them by default).
 build() {
   setup
   cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$BUILD_DIR" -j "$JOBS"
+  if [ $# -gt 0 ]; then
+    cmake --build "$BUILD_DIR" -j "$JOBS" --target "$@"
+  else
+    cmake --build "$BUILD_DIR" -j "$JOBS"
+  fi
 }
 
 # The sanitizer build keeps to the translation units that read files and run the CLI: CGAL is
@@ -66,7 +71,7 @@ case "${1:-demo}" in
   setup) setup ;;
   build) build ;;
   demo)
-    build
+    build lapmesh_cli  # only what the demo runs: the tests, examples and modules are left to `test`
     mkdir -p "$ROOT/out"
     mesh="$BUILD_DIR/cgal-data/data/meshes/cow.off"
     "$BUILD_DIR/src/lapmesh" curvature "$mesh" -o "$ROOT/out/cow_mean_curvature.ply" --area mixed --colormap coolwarm --clip 1
