@@ -32,10 +32,57 @@ inline double mean_curvature_sign(const Eigen::Vector3d& Lx, const Eigen::Vector
   return Lx.dot(n) > 1e-10 * Lx.norm() ? -1.0 : 1.0;
 }
 
+/// All curvatures with the intrinsic Delaunay Laplacian: its operator applied to the input
+/// positions (L x = M^-1 S x), its mass as the vertex area, the cone angles of the intrinsic
+/// metric for K, and the input's area-weighted normals for the sign.
+inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, const Positions& P, Vertex_area area,
+                                                      bool with_gaussian, bool parallel)
+{
+  const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, default_mollification_factor);
+  Vertex_curvatures out;
+  Eigen::SparseMatrix<double> S;
+  assemble_intrinsic_pencil(it, area, S, out.area);
+  require_positive_mass(out.area, area);
+  const Index n = t.num_vertices;
+  out.normal = Positions::Zero(n, 3);
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const Index* v = &t.triangles[3 * std::size_t(f)];
+    const Eigen::Vector3d p0 = P.row(v[0]), p1 = P.row(v[1]), p2 = P.row(v[2]);
+    const Eigen::RowVector3d cross = (p1 - p0).cross(p2 - p0).transpose();  // 2 x area x unit normal
+    for(int a = 0; a < 3; ++a) out.normal.row(v[a]) += cross;
+  }
+  for(Index i = 0; i < n; ++i) {
+    const double length = out.normal.row(i).norm();
+    if(length > 0) out.normal.row(i) /= length;
+  }
+  out.laplacian = S * P;
+  out.mean.resize(n);
+  for_each_index(n, parallel, [&](Index v) {
+    out.laplacian.row(v) /= out.area[v];
+    const Eigen::Vector3d Lx = out.laplacian.row(v), nv = out.normal.row(v);
+    out.mean[v] = 0.5 * Lx.norm() * mean_curvature_sign(Lx, nv);
+  });
+  if(!with_gaussian) return out;
+  const Eigen::VectorXd angle_sum = vertex_angle_sums(it);
+  out.gaussian.resize(n);
+  out.k1.resize(n);
+  out.k2.resize(n);
+  for_each_index(n, parallel, [&](Index v) {
+    const double full = t.on_boundary[v] ? M_PI : 2.0 * M_PI;
+    const double K = (full - angle_sum[v]) / out.area[v], H = out.mean[v];
+    const double root = std::sqrt(std::max(H * H - K, 0.0));
+    out.gaussian[v] = K;
+    out.k1[v] = H + root;
+    out.k2[v] = H - root;
+  });
+  return out;
+}
+
 /// All curvatures from the flat arrays; `with_gaussian` = false skips the angles.
 inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
                                             Vertex_area area, bool with_gaussian, bool parallel)
 {
+  if(laplacian == Laplacian::intrinsic_delaunay) return compute_intrinsic_curvatures(t, P, area, with_gaussian, parallel);
   Corner_geometry g;
   compute_corner_geometry(t, P, Corner_request{area, with_gaussian, true}, parallel, g);
 

@@ -181,7 +181,7 @@ public:
   /// @brief writes the basis to a binary file (atomically: temporary file, then rename).
   ///
   /// Format (little-endian, as written by this machine): 8 bytes "LAPMSB01", int64 n,
-  /// int64 m (pairs held), int64 k requested, int32 laplacian (0 uniform, 1 cotangent),
+  /// int64 m (pairs held), int64 k requested, int32 laplacian (0 uniform, 1 cotangent, 2 intrinsic Delaunay),
   /// int32 area (0 barycentric, 1 voronoi, 2 mixed), double mass[n], double eigenvalues[m],
   /// double eigenvectors[n*m] column by column.
   void save(const std::string& path) const
@@ -190,7 +190,7 @@ public:
       os.write("LAPMSB01", 8);
       const std::int64_t hdr[3] = {num_vertices(), size(), m_requested};
       os.write(reinterpret_cast<const char*>(hdr), sizeof hdr);
-      const std::int32_t kinds[2] = {m_laplacian == Laplacian::uniform ? 0 : 1, std::int32_t(m_area)};
+      const std::int32_t kinds[2] = {std::int32_t(m_laplacian), std::int32_t(m_area)};
       os.write(reinterpret_cast<const char*>(kinds), sizeof kinds);
       os.write(reinterpret_cast<const char*>(m_mass.data()), std::streamsize(sizeof(double) * m_mass.size()));
       os.write(reinterpret_cast<const char*>(m_values.data()), std::streamsize(sizeof(double) * m_values.size()));
@@ -213,7 +213,7 @@ public:
     if(!is.read(reinterpret_cast<char*>(hdr), sizeof hdr) || !is.read(reinterpret_cast<char*>(kinds), sizeof kinds))
       throw Io_error("truncated spectral basis file");
     const std::int64_t n = hdr[0], m = hdr[1];
-    if(n < 1 || m < 1 || m > n || hdr[2] < 1 || hdr[2] > m || kinds[0] < 0 || kinds[0] > 1 || kinds[1] < 0 ||
+    if(n < 1 || m < 1 || m > n || hdr[2] < 1 || hdr[2] > m || kinds[0] < 0 || kinds[0] > 2 || kinds[1] < 0 ||
        kinds[1] > 2)
       throw Io_error("malformed spectral basis file header");
     // n + m + n m doubles must be exactly what follows the header (checked without overflow).
@@ -229,7 +229,7 @@ public:
                      " vertices and " + std::to_string(m) + " pairs)");
     Spectral_basis b;
     b.m_requested = hdr[2];
-    b.m_laplacian = kinds[0] == 0 ? Laplacian::uniform : Laplacian::cotangent;
+    b.m_laplacian = Laplacian(kinds[0]);
     b.m_area = Vertex_area(kinds[1]);
     b.m_mass.resize(n);
     b.m_values.resize(m);

@@ -54,16 +54,21 @@ using Vertex_vectors = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>
 /// The discretisation of the Laplacian (doc/conventions.md).
 enum class Laplacian {
   uniform,   ///< graph Laplacian: stiffness W = A - D, mass D = diag(degree)
-  cotangent  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
+  cotangent,  ///< Laplace–Beltrami: stiffness C (halved cotangent weights), mass diag(A_i)
+  /// the cotangent Laplacian of the intrinsic Delaunay triangulation of the (mollified) edge
+  /// lengths: every off-diagonal weight >= 0; mass from the intrinsic triangles
+  intrinsic_delaunay
 };
 /// The name table of Laplacian.
 template <>
 struct Enum_names<Laplacian>
 {
   /// The names of the Laplacian enumerators, in display order.
-  static constexpr std::array<Named<Laplacian>, 2> table{{
+  static constexpr std::array<Named<Laplacian>, 3> table{{
     {Laplacian::uniform, "uniform", "graph Laplacian (adjacency minus degrees)"},
     {Laplacian::cotangent, "cotangent", "Laplace-Beltrami (cotangent weights, vertex areas)"},
+    {Laplacian::intrinsic_delaunay, "intrinsic-delaunay",
+     "Laplace-Beltrami on the intrinsic Delaunay triangulation (weights >= 0; slivers, obtuse meshes)"},
   }};
 };
 

@@ -11,6 +11,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdint>
 #include <map>
 
 namespace {
@@ -38,6 +39,49 @@ void BM_cotangent_stiffness_mixed_mass(benchmark::State& state)
   for(auto _ : state) {
     auto pencil = lapmesh::laplacian_pencil<Tag>(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
     benchmark::DoNotOptimize(pencil.stiffness.valuePtr());
+  }
+  state.counters["vertices"] = double(num_vertices(m));
+}
+
+// The same tori with every vertex moved by a seeded 0.3 edge length: obtuse triangles, so the
+// intrinsic Delaunay Laplacian has edges to flip.
+const Mesh& jittered_torus_mesh(int n)
+{
+  static std::map<int, Mesh> cache;
+  auto it = cache.find(n);
+  if(it == cache.end()) {
+    lapmesh::Triangle_soup s = lapmesh::torus(n, n, 1.0, 0.4);
+    const double h = 0.3 * 2 * M_PI * 0.4 / n;
+    std::uint64_t state = 12345;
+    for(auto& p : s.points)
+      for(double& c : p) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        c += h * (double(state >> 11) / double(1ull << 53) - 0.5);
+      }
+    Mesh m;
+    lapmesh::make_mesh(s, m);
+    it = cache.emplace(n, std::move(m)).first;
+  }
+  return it->second;
+}
+
+// Plain cotangent against intrinsic Delaunay on the same mesh (state.range(1): 1 = jittered),
+// with the flips counted; the assembly from the raw mesh, as above.
+void BM_cotangent_vs_intrinsic(benchmark::State& state)
+{
+  const bool jittered = state.range(1) != 0;
+  const Mesh& m = jittered ? jittered_torus_mesh(int(state.range(0))) : torus_mesh(int(state.range(0)));
+  const auto kind = state.range(2) != 0 ? lapmesh::Laplacian::intrinsic_delaunay : lapmesh::Laplacian::cotangent;
+  for(auto _ : state) {
+    auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(kind));
+    benchmark::DoNotOptimize(pencil.stiffness.valuePtr());
+  }
+  if(kind == lapmesh::Laplacian::intrinsic_delaunay) {
+    const auto e = lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values());
+    lapmesh::internal::Intrinsic_delaunay_stats stats;
+    lapmesh::internal::intrinsic_delaunay_triangulation(e.topology, e.positions,
+                                                        lapmesh::internal::default_mollification_factor, &stats);
+    state.counters["flips"] = double(stats.flips);
   }
   state.counters["vertices"] = double(num_vertices(m));
 }
@@ -86,6 +130,10 @@ BENCHMARK(BM_uniform_laplacian)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Sequential_tag)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Parallel_if_available_tag)->Apply(sizes);
 BENCHMARK(BM_mean_curvature_only)->Apply(sizes);
+BENCHMARK(BM_cotangent_vs_intrinsic)
+  ->ArgsProduct({{316, 1000}, {0, 1}, {0, 1}})
+  ->ArgNames({"n", "jittered", "intrinsic"})
+  ->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_all_curvatures, CGAL::Sequential_tag)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_all_curvatures, CGAL::Parallel_if_available_tag)->Apply(sizes);
 BENCHMARK_MAIN();

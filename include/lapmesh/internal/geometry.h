@@ -48,6 +48,25 @@ struct Corner_request
   bool want_face_normals = false;
 };
 
+/// The three corners' shares of a face's area for the lumped mass of kind `area`, from the
+/// corner cotangents and the squared lengths of the sides opposite each corner: a third each
+/// (barycentric), the circumcentric (Voronoi) shares, or Meyer et al.'s mixed shares.
+inline void lumped_corner_areas(Vertex_area area, double face_area, const double cot[3], const double l2[3],
+                                double out[3])
+{
+  const bool obtuse = cot[0] < 0 || cot[1] < 0 || cot[2] < 0;
+  if(area == Vertex_area::barycentric) {
+    out[0] = out[1] = out[2] = face_area / 3.0;
+  } else if(area == Vertex_area::mixed && obtuse) {
+    for(int a = 0; a < 3; ++a) out[a] = cot[a] < 0 ? 0.5 * face_area : 0.25 * face_area;
+  } else {
+    // Voronoi share of corner a: 1/8 of (|edge|^2 cot(opposite angle)) over its two edges.
+    out[0] = 0.125 * (l2[2] * cot[2] + l2[1] * cot[1]);
+    out[1] = 0.125 * (l2[0] * cot[0] + l2[2] * cot[2]);
+    out[2] = 0.125 * (l2[1] * cot[1] + l2[0] * cot[0]);
+  }
+}
+
 inline void throw_degenerate_face(Index f)
 {
   throw Mesh_error("face " + std::to_string(f) +
@@ -98,21 +117,8 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
     double* cot = &g.cot[3 * std::size_t(f)];
     cot[0] = c0; cot[1] = c1; cot[2] = c2;
 
-    double* A = &g.corner_area[3 * std::size_t(f)];
-    const double area = 0.5 * dbl_area;
-    const bool obtuse = dot0 < 0 || dot1 < 0 || dot2 < 0;
-    if(request.area == Vertex_area::barycentric) {
-      A[0] = A[1] = A[2] = area / 3.0;
-    } else if(request.area == Vertex_area::mixed && obtuse) {
-      A[0] = dot0 < 0 ? 0.5 * area : 0.25 * area;
-      A[1] = dot1 < 0 ? 0.5 * area : 0.25 * area;
-      A[2] = dot2 < 0 ? 0.5 * area : 0.25 * area;
-    } else {
-      // Voronoi share of corner a: 1/8 of (|edge|^2 cot(opposite angle)) over its two edges.
-      A[0] = 0.125 * (l2 * c2 + l1 * c1);
-      A[1] = 0.125 * (l0 * c0 + l2 * c2);
-      A[2] = 0.125 * (l1 * c1 + l0 * c0);
-    }
+    const double squared[3] = {l0, l1, l2};
+    lumped_corner_areas(request.area, 0.5 * dbl_area, cot, squared, &g.corner_area[3 * std::size_t(f)]);
     if(request.want_angles) {
       // The angle opposite the longest edge is pi minus the other two: one atan2 fewer,
       // and the three angles of every face sum to pi, which makes Gauss–Bonnet exact.

@@ -5,6 +5,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/intrinsic_triangulation.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/parameters.h>
 #include <lapmesh/types.h>
@@ -17,13 +18,38 @@
 namespace lapmesh {
 namespace internal {
 
+/// The default mollification margin of the intrinsic Delaunay Laplacian, in mean edge lengths.
+constexpr double default_mollification_factor = 1e-5;
+
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
-/// matrix with t's pattern (repeated assembly while smoothing) only the values are written.
+/// matrix with t's pattern (repeated assembly while smoothing) only the values are written;
+/// the intrinsic Delaunay Laplacian has a pattern of its own (its flipped edges), rebuilt
+/// each time.
 inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
                             Vertex_area area, bool parallel, Laplacian_pencil& out)
 {
+  if(laplacian == Laplacian::intrinsic_delaunay) {
+    Intrinsic_delaunay_stats stats;
+    const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, default_mollification_factor, &stats);
+    if(stats.flips > 0) {
+      assemble_intrinsic_pencil(it, area, out.stiffness, out.mass);
+      return;
+    }
+    // No flip: the triangles are the mesh's, so are the pattern and the assembly; only the
+    // cotangents and areas come from the (mollified) lengths.
+    if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
+       !out.stiffness.isCompressed() ||
+       !std::equal(t.inner.begin(), t.inner.end(), out.stiffness.innerIndexPtr()))
+      make_pattern_matrix(t, out.stiffness);
+    Corner_geometry g;
+    intrinsic_corner_geometry(it, area, parallel, g);
+    fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
+    out.mass = gather_corner_sums(t, g.corner_area, parallel);
+    return;
+  }
   if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
-     !out.stiffness.isCompressed())
+     !out.stiffness.isCompressed() ||
+     !std::equal(t.inner.begin(), t.inner.end(), out.stiffness.innerIndexPtr()))
     make_pattern_matrix(t, out.stiffness);
   if(laplacian == Laplacian::uniform) {
     fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
@@ -56,11 +82,11 @@ inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
                        Mesh_error::Element::vertex, i);
 }
 
-/// require_positive_mass() for the cotangent Laplacian's vertex areas; the uniform mass (the
-/// degrees) is positive by construction.
+/// require_positive_mass() for the vertex areas of the geometric Laplacians; the uniform mass
+/// (the degrees) is positive by construction.
 inline void require_positive_mass(Laplacian laplacian, const Eigen::VectorXd& mass, Vertex_area area)
 {
-  if(laplacian == Laplacian::cotangent) require_positive_mass(mass, area);
+  if(laplacian != Laplacian::uniform) require_positive_mass(mass, area);
 }
 
 template <typename NamedParameters>

@@ -175,7 +175,7 @@ private:
     require_positive_mass(m_s.laplacian, m_pencil.mass, m_s.area);
     m_report.assembly_seconds += seconds_since(t0);
 
-    const bool geometric = m_s.laplacian == Laplacian::cotangent;
+    const bool geometric = m_s.laplacian != Laplacian::uniform;
     // What must be recomputed each iteration from the current positions.
     m_rebuild_stiffness = geometric && !m_s.fixed_operator && m_s.scheme != Smoothing_scheme::conformal;
     m_rebuild = geometric && !m_s.fixed_operator;
@@ -211,6 +211,7 @@ private:
     const int planned_factorizations = m_rebuild ? m_s.iterations : 1;
     m_solver = std::make_unique<Spd_direct_solver>(m_s.use_cholmod, m_s.external_solver);
     m_solver->analyze(m_system->matrix(), planned_factorizations);
+    remember_pattern();
     m_report.solver = m_solver->name();
     m_report.analysis_seconds += seconds_since(t0);
     const Index nf = m_system->size();
@@ -249,6 +250,10 @@ private:
     rebuild_operator_after(it, [&] {
       if(m_rebuild_stiffness) {
         assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil);
+      } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
+        Laplacian_pencil current;
+        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current);
+        m_pencil.mass = std::move(current.mass);
       } else {
         m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);
       }
@@ -256,6 +261,29 @@ private:
     });
     m_report.assembly_seconds += seconds_since(t0);
     m_factorized = false;
+    // The intrinsic Delaunay operator's pattern follows its flips: a new pattern needs a new
+    // free block and a new symbolic analysis.
+    if(!is_explicit() && m_rebuild_stiffness && pattern_changed()) {
+      const auto t1 = Clock::now();
+      m_system.emplace(m_pencil.stiffness, m_free_mask);
+      m_solver->analyze(m_system->matrix(), m_s.iterations - it);
+      remember_pattern();
+      m_report.analysis_seconds += seconds_since(t1);
+    }
+  }
+
+    void remember_pattern()
+  {
+    const auto& S = m_pencil.stiffness;
+    m_pattern_outer.assign(S.outerIndexPtr(), S.outerIndexPtr() + S.outerSize() + 1);
+    m_pattern_inner.assign(S.innerIndexPtr(), S.innerIndexPtr() + S.nonZeros());
+  }
+  bool pattern_changed() const
+  {
+    const auto& S = m_pencil.stiffness;
+    return Index(m_pattern_inner.size()) != S.nonZeros() ||
+           !std::equal(m_pattern_outer.begin(), m_pattern_outer.end(), S.outerIndexPtr()) ||
+           !std::equal(m_pattern_inner.begin(), m_pattern_inner.end(), S.innerIndexPtr());
   }
 
   /// Volume or area restoration; the explicit scheme's divergence check.
@@ -390,6 +418,7 @@ private:
   double m_system_scale = 1, m_scaled_lambda = 0;
   Block m_B, m_X;
   bool m_factorized = false;
+  std::vector<Index> m_pattern_outer, m_pattern_inner;  // of the analysed system
   bool m_try_preconditioned_cg = false;
 };
 

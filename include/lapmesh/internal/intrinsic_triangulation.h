@@ -1,0 +1,337 @@
+// Internal: the intrinsic Delaunay triangulation of a triangle mesh, from edge lengths only.
+//
+// The mesh's faces are kept as an abstract triangulation (3 vertex indices per face, in the
+// face's orientation) with a length per halfedge; positions are read once, for the initial
+// lengths. Flipping an edge replaces the diagonal of the quad formed by its two triangles
+// with the other diagonal, whose length comes from laying the two triangles out in the plane:
+// the surface (a cone metric) is unchanged, only its triangulation. Flipping every interior
+// edge whose opposite angles sum to more than pi (cot alpha + cot beta < 0) ends in the
+// intrinsic Delaunay triangulation, on which every cotangent weight is >= 0 (Bobenko and
+// Springborn 2007; Sharp and Crane 2020 for the nonmanifold and mollified setting).
+//
+// Mollification (Sharp and Crane 2020): every length is raised by the smallest epsilon >= 0
+// that makes each triangle satisfy l_i + l_j >= l_k + delta, so that zero-area and
+// near-degenerate triangles get finite angles; delta is small against the mean edge length.
+//
+// Conventions as internal/topology.h: halfedge h = 3f + a of face f runs from the vertex of
+// corner a to the vertex of corner a+1 (mod 3), and is opposite corner a+2 (mod 3).
+#ifndef LAPMESH_INTERNAL_INTRINSIC_TRIANGULATION_H
+#define LAPMESH_INTERNAL_INTRINSIC_TRIANGULATION_H
+
+#include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/topology.h>
+#include <lapmesh/types.h>
+
+#include <Eigen/SparseCore>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// The area of a triangle with side lengths a, b, c (Kahan's stable form of Heron's
+/// formula); 0 when the lengths violate the triangle inequality.
+inline double triangle_area_from_lengths(double a, double b, double c)
+{
+  if(a < b) std::swap(a, b);
+  if(a < c) std::swap(a, c);
+  if(b < c) std::swap(b, c);  // a >= b >= c
+  const double p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+  return p > 0 ? 0.25 * std::sqrt(p) : 0.0;
+}
+
+/// What building the intrinsic Delaunay triangulation did.
+struct Intrinsic_delaunay_stats
+{
+  long long flips = 0;          ///< edge flips performed
+  double mollification = 0;     ///< epsilon added to every edge length
+  long long non_delaunay_before = 0;  ///< interior edges with cot alpha + cot beta < 0 at the start
+};
+
+class Intrinsic_triangulation
+{
+public:
+  /// The triangulation of `t` with the edge lengths of the positions `P`.
+  template <typename Positions>
+  Intrinsic_triangulation(const Mesh_topology& t, const Positions& P)
+    : m_num_vertices(t.num_vertices), m_tri(t.triangles), m_twin(t.triangles.size(), -1),
+      m_length(t.triangles.size())
+  {
+    const std::size_t nh = m_tri.size();
+    for(std::size_t h = 0; h < nh; ++h) {
+      const Index a = m_tri[h], b = m_tri[next_of(Index(h))];
+      m_length[h] = (P.row(a) - P.row(b)).norm();
+    }
+    // Twins through the topology's slots: slot (i, j) knows the corners opposite i->j and j->i.
+    for(Index i = 0; i < t.num_vertices; ++i)
+      for(Index s = t.outer[i]; s < t.outer[i + 1]; ++s) {
+        const auto& c = t.slot_corners[s];
+        if(c[0] < 0 || c[1] < 0) continue;
+        const Index h = halfedge_opposite(c[0]), g = halfedge_opposite(c[1]);
+        m_twin[h] = g;
+        m_twin[g] = h;
+      }
+  }
+
+  Index num_vertices() const { return m_num_vertices; }
+  Index num_faces() const { return Index(m_tri.size() / 3); }
+  const std::vector<Index>& triangles() const { return m_tri; }
+  const std::vector<Index>& twins() const { return m_twin; }
+  const std::vector<double>& lengths() const { return m_length; }
+
+  /// Mean length over the edges (each interior edge once).
+  double mean_edge_length() const
+  {
+    double sum = 0;
+    std::size_t count = 0;
+    for(std::size_t h = 0; h < m_length.size(); ++h)
+      if(m_twin[h] < Index(h)) {  // boundary halfedges, and the first of each twin pair
+        sum += m_length[h];
+        ++count;
+      }
+    return count ? sum / double(count) : 0.0;
+  }
+
+  /// Raises every length by the smallest epsilon >= 0 after which every triangle has
+  /// l_i + l_j - l_k >= delta; returns epsilon.
+  double mollify(double delta)
+  {
+    double epsilon = 0;
+    for(Index f = 0; f < num_faces(); ++f) {
+      const double* l = &m_length[3 * std::size_t(f)];
+      const double slack = std::min({l[0] + l[1] - l[2], l[1] + l[2] - l[0], l[2] + l[0] - l[1]});
+      epsilon = std::max(epsilon, delta - slack);
+    }
+    if(epsilon > 0)
+      for(double& l : m_length) l += epsilon;
+    return std::max(epsilon, 0.0);
+  }
+
+  /// cot of the angle at corner c (from the lengths of its face).
+  double corner_cotangent(Index c) const
+  {
+    const Index f = c / 3;
+    const double area = face_area(f);
+    const double opposite = m_length[halfedge_opposite(c)];
+    const double b = m_length[3 * f + (c % 3)], d = m_length[3 * f + (c % 3 + 2) % 3];  // the two sides at c
+    return (b * b + d * d - opposite * opposite) / (4.0 * area);
+  }
+
+  double face_area(Index f) const
+  {
+    return triangle_area_from_lengths(m_length[3 * f], m_length[3 * f + 1], m_length[3 * f + 2]);
+  }
+
+  /// cot alpha + cot beta of the interior edge of halfedge h (alpha, beta the opposite angles).
+  double cotangent_sum(Index h) const
+  {
+    return corner_cotangent(corner_opposite(h)) + corner_cotangent(corner_opposite(m_twin[h]));
+  }
+
+  /// Flips interior edges until every one is Delaunay (cot alpha + cot beta >= -tolerance).
+  Intrinsic_delaunay_stats flip_to_delaunay(double tolerance = 1e-12)
+  {
+    Intrinsic_delaunay_stats stats;
+    std::vector<Index> queue;
+    std::vector<char> queued(m_tri.size(), 0);
+    for(Index h = 0; h < Index(m_tri.size()); ++h)
+      if(m_twin[h] > h) {
+        if(cotangent_sum(h) < -tolerance) ++stats.non_delaunay_before;
+        queue.push_back(h);
+        queued[h] = 1;
+      }
+    // In exact arithmetic each flip decreases a finite energy; the cap guards round-off cycles.
+    const long long max_flips = 100 * (long long)m_tri.size() + 1000;
+    while(!queue.empty() && stats.flips < max_flips) {
+      const Index h = queue.back();
+      queue.pop_back();
+      queued[h] = 0;
+      const Index g = m_twin[h];
+      if(g < 0 || h / 3 == g / 3 || m_tri[prev_of(h)] == m_tri[prev_of(g)] || cotangent_sum(h) >= -tolerance)
+        continue;  // a boundary edge, a face glued to itself, or a quad whose diagonal would be a loop
+      flip(h);
+      ++stats.flips;
+      // The four outer edges of the new pair of triangles may have become non-Delaunay.
+      for(Index f : {h / 3, g / 3})
+        for(Index k = 0; k < 3; ++k) {
+          Index e = 3 * f + k;
+          if(m_twin[e] < 0) continue;
+          if(m_twin[e] < e) e = m_twin[e];
+          if(!queued[e]) {
+            queued[e] = 1;
+            queue.push_back(e);
+          }
+        }
+    }
+    return stats;
+  }
+
+  /// True when every interior edge satisfies cot alpha + cot beta >= -tolerance.
+  bool is_delaunay(double tolerance = 1e-12) const
+  {
+    for(Index h = 0; h < Index(m_tri.size()); ++h)
+      if(m_twin[h] > h && cotangent_sum(h) < -tolerance) return false;
+    return true;
+  }
+
+  static Index next_of(Index h) { return h % 3 == 2 ? h - 2 : h + 1; }
+  static Index prev_of(Index h) { return h % 3 == 0 ? h + 2 : h - 1; }
+  /// The halfedge opposite corner c, and the corner opposite halfedge h.
+  static Index halfedge_opposite(Index c) { return next_of(c); }
+  static Index corner_opposite(Index h) { return prev_of(h); }
+
+private:
+  /// Replaces the edge of h (a->b in face (a, b, c), twin b->a in face (b, a, d)) by c-d:
+  /// the faces become (d, b, c) and (c, a, d), in the same orientation.
+  void flip(Index h)
+  {
+    const Index g = m_twin[h];
+    const Index f0 = h / 3, f1 = g / 3;
+    const Index hb = next_of(h), hc = prev_of(h);  // b->c, c->a
+    const Index ga = next_of(g), gd = prev_of(g);  // a->d, d->b
+    const Index a = m_tri[h], b = m_tri[hb], c = m_tri[hc], d = m_tri[gd];
+    const double l_ab = m_length[h], l_bc = m_length[hb], l_ca = m_length[hc], l_ad = m_length[ga],
+                 l_db = m_length[gd];
+    // Layout: a at the origin, b on the x axis, c above it, d below it.
+    const double cx = (l_ab * l_ab + l_ca * l_ca - l_bc * l_bc) / (2 * l_ab);
+    const double cy = 2 * triangle_area_from_lengths(l_ab, l_bc, l_ca) / l_ab;
+    const double dx = (l_ab * l_ab + l_ad * l_ad - l_db * l_db) / (2 * l_ab);
+    const double dy = -2 * triangle_area_from_lengths(l_ab, l_db, l_ad) / l_ab;
+    const double l_cd = std::hypot(cx - dx, cy - dy);
+    const Index t_bc = m_twin[hb], t_ca = m_twin[hc], t_ad = m_twin[ga], t_db = m_twin[gd];
+
+    // f0 = (d, b, c): halfedges d->b, b->c, c->d; f1 = (c, a, d): c->a, a->d, d->c.
+    const Index n0 = 3 * f0, n1 = 3 * f1;
+    m_tri[n0] = d; m_tri[n0 + 1] = b; m_tri[n0 + 2] = c;
+    m_tri[n1] = c; m_tri[n1 + 1] = a; m_tri[n1 + 2] = d;
+    auto set = [&](Index half, double length, Index twin) {
+      m_length[half] = length;
+      m_twin[half] = twin;
+      if(twin >= 0) m_twin[twin] = half;
+    };
+    set(n0, l_db, t_db);
+    set(n0 + 1, l_bc, t_bc);
+    set(n1, l_ca, t_ca);
+    set(n1 + 1, l_ad, t_ad);
+    m_length[n0 + 2] = m_length[n1 + 2] = l_cd;
+    m_twin[n0 + 2] = n1 + 2;
+    m_twin[n1 + 2] = n0 + 2;
+  }
+
+  Index m_num_vertices;
+  std::vector<Index> m_tri;      // 3 vertices per face
+  std::vector<Index> m_twin;     // per halfedge, -1 on the boundary
+  std::vector<double> m_length;  // per halfedge (twins agree)
+};
+
+/// The intrinsic Delaunay triangulation of the positions P on the topology t, its lengths
+/// mollified by `delta_factor` x the mean edge length first.
+inline Intrinsic_triangulation intrinsic_delaunay_triangulation(const Mesh_topology& t, const Vertex_vectors& P,
+                                                                double delta_factor,
+                                                                Intrinsic_delaunay_stats* stats = nullptr)
+{
+  Intrinsic_triangulation it(t, P);
+  const double epsilon = it.mollify(delta_factor * it.mean_edge_length());
+  Intrinsic_delaunay_stats s = it.flip_to_delaunay();
+  s.mollification = epsilon;
+  if(stats) *stats = s;
+  return it;
+}
+
+/// The corner cotangents and corner areas of an intrinsic triangulation, in its corner order
+/// (the mesh's own while no edge was flipped).
+inline void intrinsic_corner_geometry(const Intrinsic_triangulation& it, Vertex_area area, bool parallel,
+                                      Corner_geometry& g)
+{
+  const Index m = it.num_faces();
+  g.cot.resize(3 * std::size_t(m));
+  g.corner_area.resize(3 * std::size_t(m));
+  const std::vector<double>& len = it.lengths();
+  for_each_index(m, parallel, [&](Index f) {
+    double l2[3];
+    for(Index a = 0; a < 3; ++a) {
+      g.cot[3 * f + a] = it.corner_cotangent(3 * f + a);
+      const double l = len[Intrinsic_triangulation::halfedge_opposite(3 * f + a)];
+      l2[a] = l * l;  // the squared side opposite corner a
+    }
+    lumped_corner_areas(area, it.face_area(f), &g.cot[3 * std::size_t(f)], l2, &g.corner_area[3 * std::size_t(f)]);
+  });
+}
+
+/// The cotangent stiffness and the lumped mass of an intrinsic triangulation. The pattern is
+/// that of its edges, which after flips may join vertices that share no mesh edge; two
+/// intrinsic edges between the same vertices add up.
+inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_area area,
+                                      Eigen::SparseMatrix<double>& stiffness, Eigen::VectorXd& mass)
+{
+  const Index n = it.num_vertices(), m = it.num_faces();
+  const std::vector<Index>& tri = it.triangles();
+  std::vector<Eigen::Triplet<double, Index>> entries;
+  entries.reserve(6 * std::size_t(m) + std::size_t(n));
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
+  mass = Eigen::VectorXd::Zero(n);
+  Corner_geometry g;
+  intrinsic_corner_geometry(it, area, false, g);
+  for(Index f = 0; f < m; ++f) {
+    const double* cot = &g.cot[3 * std::size_t(f)];
+    for(Index a = 0; a < 3; ++a) {
+      const Index c = 3 * f + a;
+      mass[tri[c]] += g.corner_area[c];
+      // The halfedge opposite corner a gets half of its cotangent.
+      const Index h = Intrinsic_triangulation::halfedge_opposite(c);
+      const Index i = tri[h], j = tri[Intrinsic_triangulation::next_of(h)];
+      if(i == j) continue;  // a loop edge joins a vertex to itself: no term in L x
+      const double w = 0.5 * cot[a];
+      entries.emplace_back(i, j, w);
+      entries.emplace_back(j, i, w);
+      diagonal[i] -= w;
+      diagonal[j] -= w;
+    }
+  }
+  for(Index i = 0; i < n; ++i) entries.emplace_back(i, i, diagonal[i]);
+  stiffness.resize(n, n);
+  stiffness.setFromTriplets(entries.begin(), entries.end());
+  stiffness.makeCompressed();
+}
+
+/// The sum of the corner angles at each vertex (the cone angle, which flips do not change).
+inline Eigen::VectorXd vertex_angle_sums(const Intrinsic_triangulation& it)
+{
+  Eigen::VectorXd sums = Eigen::VectorXd::Zero(it.num_vertices());
+  const std::vector<double>& len = it.lengths();
+  for(Index f = 0; f < it.num_faces(); ++f) {
+    // The angle opposite the longest side is pi minus the other two, so that the angles of
+    // every face sum to pi and Gauss–Bonnet holds to round-off.
+    const double* l = &len[3 * std::size_t(f)];
+    const double opposite[3] = {l[1], l[2], l[0]};  // the side opposite corner a is halfedge a+1
+    const double double_area = 2 * it.face_area(f);
+    int largest = 0;
+    for(int a = 1; a < 3; ++a)
+      if(opposite[a] > opposite[largest]) largest = a;
+    double angle[3];
+    for(int a = 0; a < 3; ++a) {
+      if(a == largest) continue;
+      const double b = l[a], d = l[(a + 2) % 3];  // the two sides at corner a
+      angle[a] = std::atan2(2 * double_area, b * b + d * d - opposite[a] * opposite[a]);
+    }
+    angle[largest] = M_PI - angle[(largest + 1) % 3] - angle[(largest + 2) % 3];
+    for(int a = 0; a < 3; ++a) sums[it.triangles()[3 * f + a]] += angle[a];
+  }
+  return sums;
+}
+
+/// The intrinsic Delaunay Laplacian of the positions P on the topology t.
+inline void assemble_intrinsic_delaunay(const Mesh_topology& t, const Vertex_vectors& P, Vertex_area area,
+                                        double delta_factor, Eigen::SparseMatrix<double>& stiffness,
+                                        Eigen::VectorXd& mass, Intrinsic_delaunay_stats* stats = nullptr)
+{
+  assemble_intrinsic_pencil(intrinsic_delaunay_triangulation(t, P, delta_factor, stats), area, stiffness, mass);
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif
