@@ -32,6 +32,24 @@ inline double mean_curvature_sign(const Eigen::Vector3d& Lx, const Eigen::Vector
   return Lx.dot(n) > 1e-10 * Lx.norm() ? -1.0 : 1.0;
 }
 
+/// K from the angle sums and the areas in `out`, then k1, k2 from K and the mean curvature.
+inline void set_gaussian_and_principal(const Mesh_topology& t, const Eigen::VectorXd& angle_sum, bool parallel,
+                                       Vertex_curvatures& out)
+{
+  const Index n = t.num_vertices;
+  out.gaussian.resize(n);
+  out.k1.resize(n);
+  out.k2.resize(n);
+  for_each_index(n, parallel, [&](Index v) {
+    const double full = t.on_boundary[v] ? M_PI : 2.0 * M_PI;
+    const double K = (full - angle_sum[v]) / out.area[v], H = out.mean[v];
+    const double root = std::sqrt(std::max(H * H - K, 0.0));
+    out.gaussian[v] = K;
+    out.k1[v] = H + root;
+    out.k2[v] = H - root;
+  });
+}
+
 /// All curvatures with the intrinsic Delaunay Laplacian: its operator applied to the input
 /// positions (L x = M^-1 S x), its mass as the vertex area, the cone angles of the intrinsic
 /// metric for K, and the input's area-weighted normals for the sign.
@@ -63,18 +81,7 @@ inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, co
     out.mean[v] = 0.5 * Lx.norm() * mean_curvature_sign(Lx, nv);
   });
   if(!with_gaussian) return out;
-  const Eigen::VectorXd angle_sum = vertex_angle_sums(it);
-  out.gaussian.resize(n);
-  out.k1.resize(n);
-  out.k2.resize(n);
-  for_each_index(n, parallel, [&](Index v) {
-    const double full = t.on_boundary[v] ? M_PI : 2.0 * M_PI;
-    const double K = (full - angle_sum[v]) / out.area[v], H = out.mean[v];
-    const double root = std::sqrt(std::max(H * H - K, 0.0));
-    out.gaussian[v] = K;
-    out.k1[v] = H + root;
-    out.k2[v] = H - root;
-  });
+  set_gaussian_and_principal(t, vertex_angle_sums(it), parallel, out);
   return out;
 }
 
@@ -112,18 +119,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   });
   if(!with_gaussian) return out;
 
-  const Eigen::VectorXd angle_sum = gather_corner_sums(t, g.angle, parallel);
-  out.gaussian.resize(n);
-  out.k1.resize(n);
-  out.k2.resize(n);
-  for_each_index(n, parallel, [&](Index v) {
-    const double full = t.on_boundary[v] ? M_PI : 2.0 * M_PI;
-    const double K = (full - angle_sum[v]) / out.area[v], H = out.mean[v];
-    const double root = std::sqrt(std::max(H * H - K, 0.0));
-    out.gaussian[v] = K;
-    out.k1[v] = H + root;
-    out.k2[v] = H - root;
-  });
+  set_gaussian_and_principal(t, gather_corner_sums(t, g.angle, parallel), parallel, out);
   return out;
 }
 
