@@ -408,7 +408,25 @@ TEST(Spectral, SaveLoadRoundTripAndErrors)
   EXPECT_EQ((c.eigenvectors() - b.eigenvectors()).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ(c.vertex_area(), lapmesh::Vertex_area::mixed);
   std::filesystem::resize_file(path, 100);
-  EXPECT_THROW(lapmesh::Spectral_basis::load(path), std::runtime_error);
+  EXPECT_THROW(lapmesh::Spectral_basis::load(path), lapmesh::Io_error);
+  // A header that declares 1e12 vertices in a 48-byte file is refused from the file size,
+  // before anything is allocated for them.
+  {
+    std::ofstream os(path, std::ios::binary | std::ios::trunc);
+    os.write("LAPMSB01", 8);
+    const std::int64_t hdr[3] = {1000000000000, 1, 1};
+    const std::int32_t kinds[2] = {1, 0};
+    os.write(reinterpret_cast<const char*>(hdr), sizeof hdr);
+    os.write(reinterpret_cast<const char*>(kinds), sizeof kinds);
+    os.write("\0\0\0\0\0\0\0\0", 8);
+  }
+  EXPECT_EQ(std::filesystem::file_size(path), 48u);
+  try {
+    lapmesh::Spectral_basis::load(path);
+    ADD_FAILURE() << "a truncated basis file was accepted";
+  } catch(const lapmesh::Io_error& e) {
+    EXPECT_NE(std::string(e.what()).find("declares 1000000000000 vertices"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(b.reconstruct(Eigen::MatrixXd::Zero(10, 3), 3), std::invalid_argument);
   EXPECT_THROW(b.reconstruct(Eigen::MatrixXd::Zero(b.num_vertices(), 3), b.size() + 1), std::invalid_argument);
 }
