@@ -206,7 +206,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
   if(s.noise_levels.empty() || s.schemes.empty() || s.laplacians.empty() || s.time_steps.empty())
     throw std::invalid_argument("the study needs at least one noise level, scheme, Laplacian and time step");
   if(s.restore_volume && t.num_boundary_edges != 0)
-    throw std::invalid_argument("volume restoration needs a closed mesh");
+    throw Parameter_error("restore_volume", "volume restoration needs a closed mesh");
 
   Deviation_meter meter(t, clean, s.hausdorff_spacing);
   Denoising_study study;

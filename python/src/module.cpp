@@ -315,6 +315,15 @@ void translate(std::exception_ptr p)
   }
 }
 
+// The operator of `curvatures` and `laplacian`: the Laplacian and vertex area by name.
+lapmesh_ops::Curvature_settings operator_settings(const std::string& laplacian, const std::string& area)
+{
+  lapmesh_ops::Curvature_settings s;
+  s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
+  s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+  return s;
+}
+
 } // namespace
 
 PYBIND11_MODULE(_lapmesh, m)
@@ -435,9 +444,7 @@ PYBIND11_MODULE(_lapmesh, m)
   m.def(
     "curvatures",
     [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
-      lapmesh_ops::Curvature_settings s;
-      s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
-      s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area);
       const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
       const Mesh& mesh = *held;
       lapmesh::Vertex_curvatures c;
@@ -458,9 +465,7 @@ PYBIND11_MODULE(_lapmesh, m)
   m.def(
     "_laplacian_csr",
     [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
-      lapmesh_ops::Curvature_settings s;
-      s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
-      s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area);
       const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
       const Mesh& mesh = *held;
       lapmesh_ops::Csr_laplacian L;

@@ -156,8 +156,8 @@ private:
     if(m_s.restore_volume && m_s.restore_area)
       throw std::invalid_argument("restore the volume or the area, not both");
     if(m_s.restore_volume && (nf != n || m_t.num_boundary_edges != 0))
-      throw std::invalid_argument("volume restoration needs a closed mesh without constrained vertices "
-                                  "(it rescales the whole mesh, which would move fixed vertices)");
+      throw Parameter_error("restore_volume", "volume restoration needs a closed mesh without constrained vertices "
+                                              "(it rescales the whole mesh, which would move fixed vertices)");
     if(m_s.restore_area && nf != n) {
       if(m_t.num_boundary_edges != 0 && m_s.fix_boundary)
         throw Parameter_error("fix_boundary", "area restoration rescales the whole mesh, so no vertex may be fixed (the "
