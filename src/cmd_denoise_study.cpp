@@ -293,7 +293,10 @@ void run(const Study_options& o)
   s.time_steps = parse_numbers(o.input, "--lambdas", o.lambdas, false);
   s.schemes = parse_names<lapmesh::Smoothing_scheme>(o.input, "--schemes", o.schemes);
   s.laplacians = parse_names<lapmesh::Laplacian>(o.input, "--laplacians", o.laplacians);
-  s.iterations = int(std::clamp<long long>(o.iterations, -1, 1000000));  // check() names the range
+  // check() names the range; a count beyond int is refused here, quoting it as given.
+  if(o.iterations > 1000000)
+    throw Failure(o.input + ": --iterations: is too large (" + std::to_string(o.iterations) + ", at most 100000)");
+  s.iterations = int(std::max<long long>(o.iterations, -1));
   s.unit = enum_from<lapmesh::Time_step_unit>(o.lambda_unit);
   s.seed = o.seed;
   s.noise_direction = enum_from<lapmesh::Noise_direction>(o.direction);

@@ -323,14 +323,6 @@ inline Eigen::VectorXd vertex_angle_sums(const Intrinsic_triangulation& it)
   return sums;
 }
 
-/// The intrinsic Delaunay Laplacian of the positions P on the topology t.
-inline void assemble_intrinsic_delaunay(const Mesh_topology& t, const Vertex_vectors& P, Vertex_area area,
-                                        double delta_factor, Eigen::SparseMatrix<double>& stiffness,
-                                        Eigen::VectorXd& mass, Intrinsic_delaunay_stats* stats = nullptr)
-{
-  assemble_intrinsic_pencil(intrinsic_delaunay_triangulation(t, P, delta_factor, stats), area, stiffness, mass);
-}
-
 } // namespace internal
 } // namespace lapmesh
 

@@ -263,7 +263,7 @@ private:
     m_factorized = false;
     // The intrinsic Delaunay operator's pattern follows its flips: a new pattern needs a new
     // free block and a new symbolic analysis.
-    if(!is_explicit() && m_rebuild_stiffness && pattern_changed()) {
+    if(!is_explicit() && m_rebuild_stiffness && m_s.laplacian == Laplacian::intrinsic_delaunay && pattern_changed()) {
       const auto t1 = Clock::now();
       m_system.emplace(m_pencil.stiffness, m_free_mask);
       m_solver->analyze(m_system->matrix(), m_s.iterations - it);
