@@ -75,6 +75,7 @@ def test_dask_equals_serial(corpus, tmp_path, task):
     summary = read_summary(tmp_path / "dask" / ("summary-%s.csv" % task))
     assert set(summary) == set(chosen) | {"zz_broken.off"}
     assert list(next(iter(summary.values()))) == list(batch.COLUMNS)
+    assert all(float(row["peak_mib"]) > 0 for row in summary.values())  # a worker's peak resident memory
 
 
 def test_curvature_file_is_the_cli_csv(corpus, cli, tmp_path):
@@ -115,6 +116,8 @@ def test_command_line(corpus, tmp_path):
     with open(batch.outputs(str(tmp_path), os.path.splitext(chosen[0])[0], "spectrum")[0]) as f:
         lines = f.read().splitlines()
     assert lines[0] == "index,eigenvalue" and len(lines) == 6
+    summary = read_summary(tmp_path / "summary-spectrum.csv")
+    assert all(float(row["peak_mib"]) > 0 for row in summary.values())
     bad = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, str(tmp_path), "--task", "spectrum",
                           "--laplacian", "nope"], capture_output=True, text=True)
     assert bad.returncode == 2 and "invalid choice" in bad.stderr
@@ -179,3 +182,86 @@ def test_running_scheduler(corpus, tmp_path):
     os.environ.clear()
     os.environ.update(environ)
     assert sum(r["status"] == "ok" for r in rows) == len(chosen) and rows[-1]["status"] == "failed"
+
+
+def test_spectrum_npz_is_the_basis(corpus, tmp_path):
+    """--task spectrum writes STEM.spectrum.npz: numpy.load gives SpectralBasis's eigenpairs, bit for bit;
+    a mesh whose .npz is missing is computed again."""
+    import warnings
+
+    import numpy as np
+
+    import lapmesh
+
+    folder, chosen = corpus
+    options = dict(OPTIONS, laplacian="cotangent", area="mixed")
+    rows = {r["mesh"]: r for r in batch.run(folder, str(tmp_path), "spectrum", options, serial=True)}
+    checked = 0
+    for name in chosen[:4]:
+        if rows[name]["status"] != "ok":
+            continue
+        stem = os.path.splitext(name)[0]
+        result, npz = batch.results(str(tmp_path), stem, "spectrum")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lapmesh.LapmeshWarning)  # polygons triangulated, as the batch does
+            V, F = lapmesh.read_mesh(os.path.join(folder, name))
+        basis = lapmesh.SpectralBasis(V, F, min(options["k"], len(V)), laplacian="cotangent", area="mixed")
+        with np.load(npz) as z:
+            assert sorted(z.files) == ["area", "k", "laplacian", "mass", "values", "vectors"]
+            for key in ("values", "vectors", "mass"):
+                expected = getattr(basis, key)
+                assert z[key].dtype == expected.dtype and z[key].shape == expected.shape, (name, key)
+                assert z[key].tobytes() == expected.tobytes(), (name, key)
+            assert int(z["k"]) == basis.k and str(z["laplacian"]) == "cotangent" and str(z["area"]) == "mixed"
+        with open(result) as f:
+            assert len(f.read().splitlines()) == basis.k + 1
+        checked += 1
+    assert checked >= 3
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".tmp-")]
+    stem = os.path.splitext(chosen[0])[0]
+    os.unlink(batch.results(str(tmp_path), stem, "spectrum")[1])
+    again = {r["mesh"]: r["status"] for r in batch.run(folder, str(tmp_path), "spectrum", options, serial=True)}
+    assert again[chosen[0]] == "ok" and again[chosen[1]] == "skipped"
+    assert os.path.exists(batch.results(str(tmp_path), stem, "spectrum")[1])
+
+
+def torus(rings, segments):
+    """A closed torus of rings x segments vertices."""
+    import numpy as np
+
+    u, v = np.meshgrid(np.arange(rings) * (2 * np.pi / rings), np.arange(segments) * (2 * np.pi / segments),
+                       indexing="ij")
+    V = np.stack([(2 + np.cos(v)) * np.cos(u), (2 + np.cos(v)) * np.sin(u), np.sin(v)], axis=-1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(rings), np.arange(segments), indexing="ij")
+    a, b = i * segments + j, ((i + 1) % rings) * segments + j
+    c, d = ((i + 1) % rings) * segments + (j + 1) % segments, i * segments + (j + 1) % segments
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return V, F
+
+
+def test_worker_memory_limit(corpus, tmp_path):
+    """A worker with a 300 MB memory limit and a mesh of 409,600 vertices (reading it and its curvature
+    take about 350 MiB above the worker's own ~90 MiB): the mesh fails with a MemoryError that says why, before
+    the worker reads it; the other meshes are done."""
+    import lapmesh
+
+    folder, chosen = corpus
+    meshes = tmp_path / "in"
+    meshes.mkdir()
+    for name in chosen[:3]:
+        os.symlink(os.path.join(folder, name), meshes / name)
+    V, F = torus(640, 640)
+    lapmesh.write_mesh(str(meshes / "big_torus.off"), V, F)
+    environ = dict(os.environ)
+    rows = {r["mesh"]: r for r in batch.run(str(meshes), str(tmp_path / "out"), "curvature", OPTIONS, workers=1,
+                                            memory_limit="300MB")}
+    os.environ.clear()
+    os.environ.update(environ)
+    big = rows["big_torus.off"]
+    assert big["status"] == "failed", big
+    assert big["error"].startswith("MemoryError: curvature on 409600 vertices needs at least ") and \
+        "memory limit of 286 MiB" in big["error"], big["error"]
+    assert all(rows[name]["status"] == "ok" for name in chosen[:3]), rows
+    summary = read_summary(tmp_path / "out" / "summary-curvature.csv")
+    assert summary["big_torus.off"]["status"] == "failed" and "MemoryError" in summary["big_torus.off"]["error"]
+    assert not os.path.exists(batch.outputs(str(tmp_path / "out"), "big_torus", "curvature")[1])
