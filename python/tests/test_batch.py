@@ -1,6 +1,7 @@
 """python3 -m lapmesh.batch: a local Dask cluster of 2 worker processes gives the serial run's
-outputs byte for byte; a broken mesh is reported while the others finish; a re-run skips what
-is complete and redoes only what is missing."""
+outputs byte for byte on 40 meshes of CGAL's data set; a broken mesh is reported while the
+others finish; a re-run skips what is complete and redoes only what is missing; the summary's
+peak memory, the spectrum's .npz, and a worker's memory limit."""
 import csv
 import filecmp
 import os
@@ -18,17 +19,28 @@ def off_vertices(path):
     return int(tokens[1]) if tokens and tokens[0] == "OFF" else -1
 
 
-@pytest.fixture(scope="module")
-def corpus(meshes, tmp_path_factory):
-    """12 small meshes of CGAL's data set (every kind the folder has: closed, open, polygons) and a broken one."""
-    folder = tmp_path_factory.mktemp("corpus")
+def make_corpus(meshes, folder, count):
+    """The first `count` OFF meshes of CGAL's data set with 10 to 3,000 vertices (every kind the
+    folder has: closed, open, polygons), linked into `folder`, and a broken one."""
     chosen = [f for f in sorted(os.listdir(meshes))
-              if f.endswith(".off") and 10 <= off_vertices(os.path.join(meshes, f)) <= 3000][:12]
-    assert len(chosen) == 12, chosen
+              if f.endswith(".off") and 10 <= off_vertices(os.path.join(meshes, f)) <= 3000][:count]
+    assert len(chosen) == count, chosen
     for f in chosen:
         os.symlink(os.path.join(meshes, f), folder / f)
     (folder / "zz_broken.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\nnan 0 0\n3 0 1 2\n")
     return str(folder), chosen
+
+
+@pytest.fixture(scope="module")
+def corpus(meshes, tmp_path_factory):
+    """12 small meshes of CGAL's data set and a broken one."""
+    return make_corpus(meshes, tmp_path_factory.mktemp("corpus"), 12)
+
+
+@pytest.fixture(scope="module")
+def corpus40(meshes, tmp_path_factory):
+    """40 small meshes of CGAL's data set (the 12 of corpus among them) and a broken one."""
+    return make_corpus(meshes, tmp_path_factory.mktemp("corpus40"), 40)
 
 
 def read_summary(path):
@@ -55,8 +67,8 @@ def serial_run(folder, out, task):
 
 
 @pytest.mark.parametrize("task", ["curvature", "reconstruct"])
-def test_dask_equals_serial(corpus, tmp_path, task):
-    folder, chosen = corpus
+def test_dask_equals_serial(corpus40, tmp_path, task):
+    folder, chosen = corpus40
     environ = dict(os.environ)
     serial = serial_run(folder, str(tmp_path / "serial"), task)
     dask = batch.run(folder, str(tmp_path / "dask"), task, OPTIONS, workers=2)
@@ -69,7 +81,8 @@ def test_dask_equals_serial(corpus, tmp_path, task):
             result, _ = batch.outputs(str(tmp_path / "serial"), os.path.splitext(s["mesh"])[0], task)
             other, _ = batch.outputs(str(tmp_path / "dask"), os.path.splitext(s["mesh"])[0], task)
             assert filecmp.cmp(result, other, shallow=False), result
-    assert sum(r["status"] == "ok" for r in dask) >= 10  # (a mesh may fail on its own, e.g. a solver error)
+    # a mesh may fail on its own as it fails the command line (boeing.off: reconstruct's solver check)
+    assert sum(r["status"] == "ok" for r in dask) >= len(chosen) - 2
     broken = dask[-1]
     assert broken["status"] == "failed" and "MeshError" in broken["error"] and "non-finite" in broken["error"]
     summary = read_summary(tmp_path / "dask" / ("summary-%s.csv" % task))
