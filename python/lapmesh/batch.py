@@ -145,12 +145,21 @@ def _worker_memory_left():
 
 
 def _declared_vertices(path):
-    """The vertex count an OFF or PLY file's header declares (cheap: the mesh is not read), or None."""
+    """The vertex count an OFF or PLY file's header declares (cheap: the mesh is not read), or
+    None; None too for a count the file is too small to hold (the reader reports that file)."""
     try:
         with open(path, "rb") as f:
             head = f.read(65536)
+        size = os.path.getsize(path)
     except OSError:
         return None
+    count = _header_vertices(path, head)
+    # at least 6 bytes a vertex in text ("0 0 0\n"), 12 in binary
+    return count if count is not None and 0 <= count and 6 * count <= size else None
+
+
+def _header_vertices(path, head):
+    """The vertex count in the first bytes `head` of an OFF or PLY file, or None."""
     lower = path.lower()
     try:
         if lower.endswith(".off"):

@@ -253,28 +253,34 @@ def torus(rings, segments):
 
 
 def test_worker_memory_limit(corpus, tmp_path):
-    """A worker with a 300 MB memory limit and a mesh of 409,600 vertices (reading it and its curvature
-    take about 350 MiB above the worker's own ~90 MiB): the mesh fails with a MemoryError that says why, before
-    the worker reads it; the other meshes are done."""
+    """A worker with a 300 MB memory limit (it holds about 90 MiB itself) and two meshes too big for
+    it: an OFF torus of 409,600 vertices, refused from its header's vertex count before it is read
+    (reading it takes about 180 MiB), and an OBJ torus of 160,000 vertices (no count in the
+    header), refused once read (about 75 MiB) and before its spectrum is computed. Both fail with a
+    MemoryError that says why; the worker stays up and the other meshes are done."""
     import lapmesh
 
     folder, chosen = corpus
     meshes = tmp_path / "in"
     meshes.mkdir()
-    for name in chosen[:3]:
+    small = chosen[:3]
+    for name in small:
         os.symlink(os.path.join(folder, name), meshes / name)
-    V, F = torus(640, 640)
-    lapmesh.write_mesh(str(meshes / "big_torus.off"), V, F)
+    lapmesh.write_mesh(str(meshes / "big_torus.off"), *torus(640, 640))
+    lapmesh.write_mesh(str(meshes / "mid_torus.obj"), *torus(400, 400))
     environ = dict(os.environ)
-    rows = {r["mesh"]: r for r in batch.run(str(meshes), str(tmp_path / "out"), "curvature", OPTIONS, workers=1,
+    rows = {r["mesh"]: r for r in batch.run(str(meshes), str(tmp_path / "out"), "spectrum", OPTIONS, workers=1,
                                             memory_limit="300MB")}
     os.environ.clear()
     os.environ.update(environ)
-    big = rows["big_torus.off"]
-    assert big["status"] == "failed", big
-    assert big["error"].startswith("MemoryError: curvature on 409600 vertices needs at least ") and \
-        "memory limit of 286 MiB" in big["error"], big["error"]
-    assert all(rows[name]["status"] == "ok" for name in chosen[:3]), rows
-    summary = read_summary(tmp_path / "out" / "summary-curvature.csv")
+    for name, vertices, read in (("big_torus.off", 409600, False), ("mid_torus.obj", 160000, True)):
+        row = rows[name]
+        assert row["status"] == "failed", row
+        assert row["error"].startswith("MemoryError: spectrum on %d vertices needs at least " % vertices) and \
+            "memory limit of 286 MiB" in row["error"], row["error"]
+        assert row["vertices"] == (vertices if read else ""), row
+        assert not os.path.exists(batch.outputs(str(tmp_path / "out"), os.path.splitext(name)[0], "spectrum")[1])
+    assert all(rows[name]["status"] == "ok" for name in small), rows
+    summary = read_summary(tmp_path / "out" / "summary-spectrum.csv")
     assert summary["big_torus.off"]["status"] == "failed" and "MemoryError" in summary["big_torus.off"]["error"]
-    assert not os.path.exists(batch.outputs(str(tmp_path / "out"), "big_torus", "curvature")[1])
+    assert float(summary["mid_torus.obj"]["peak_mib"]) < 286
