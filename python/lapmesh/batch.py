@@ -71,9 +71,10 @@ def results(out_dir, stem, task):
 
 
 # ---- memory ----
-# Bytes per vertex that a task needs at least, above the process's resident memory before it
-# (measured peaks on CGAL's meshes of 3k to 44k vertices were 10% to 70% higher): reading a mesh,
-# and each task's work; spectrum and reconstruct add SPECTRAL_BYTES_PER_PAIR per vertex and pair.
+# Bytes per vertex that a task needs at least, above the process's resident memory before it:
+# reading a mesh, and each task's work; spectrum and reconstruct add SPECTRAL_BYTES_PER_PAIR per
+# vertex and pair. Set below the peaks measured on CGAL's meshes (doc/python.md), so that a mesh
+# is refused only when it cannot fit.
 READ_BYTES_PER_VERTEX = 400
 TASK_BYTES_PER_VERTEX = {"curvature": 400, "spectrum": 1000, "reconstruct": 1000, "smooth": 1000,
                          "denoise-study": 1000}

@@ -253,10 +253,10 @@ def torus(rings, segments):
 
 
 def test_worker_memory_limit(corpus, tmp_path):
-    """A worker with a 300 MB memory limit (it holds about 90 MiB itself) and two meshes too big for
-    it: an OFF torus of 409,600 vertices, refused from its header's vertex count before it is read
-    (reading it takes about 180 MiB), and an OBJ torus of 160,000 vertices (no count in the
-    header), refused once read (about 75 MiB) and before its spectrum is computed. Both fail with a
+    """A worker with a 300 MB memory limit and two meshes too big for it: an OFF torus of 409,600
+    vertices, refused from its header's vertex count before it is read (reading alone would take
+    the worker near its limit), and an OBJ torus of 160,000 vertices (no count in the header),
+    which the worker can read, refused then, before its spectrum is computed. Both fail with a
     MemoryError that says why; the worker stays up and the other meshes are done."""
     import lapmesh
 
