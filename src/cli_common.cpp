@@ -37,11 +37,25 @@ void print_warnings(const std::string& input, const std::vector<lapmesh_ops::War
   }
 }
 
+namespace {
+std::vector<std::string>& pending_notes()
+{
+  static std::vector<std::string> notes;
+  return notes;
+}
+} // namespace
+
 Mesh load_mesh(const std::string& path)
 {
   lapmesh_ops::Loaded_mesh loaded = or_fail(path, [&] { return lapmesh_ops::load_mesh(path); });
-  for(const std::string& note : loaded.notes) std::cerr << path << ": note: " << note << '\n';
+  for(const std::string& note : loaded.notes) pending_notes().push_back(path + ": note: " + note);
   return std::move(loaded.mesh);
+}
+
+void print_notes()
+{
+  for(const std::string& note : pending_notes()) std::cerr << note << '\n';
+  pending_notes().clear();
 }
 
 void check_output_path(const std::string& out, const std::vector<std::string>& allowed)
@@ -86,6 +100,15 @@ void add_laplacian_option(CLI::App& cmd, std::string& value)
 {
   add_enum_option<lapmesh::Laplacian>(cmd, "--laplacian", value,
                                       "Laplacian: " + lapmesh::name_list<lapmesh::Laplacian>());
+}
+
+void add_mollification_option(CLI::App& cmd, double& value)
+{
+  cmd.add_option("--mollification", value,
+                 "intrinsic-delaunay: every edge is lengthened until each triangle has a triangle-inequality "
+                 "margin of this factor x the mean edge length (0: none)")
+    ->default_val(lapmesh::default_mollification_factor)
+    ->check(CLI::Range(0.0, 1.0));
 }
 
 void add_area_option(CLI::App& cmd, std::string& value)

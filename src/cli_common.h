@@ -58,8 +58,12 @@ decltype(auto) or_fail(const std::string& path, Function&& f)
 void print_warnings(const std::string& input, const std::vector<lapmesh_ops::Warning>& warnings);
 
 /// Reads and validates IN; every problem becomes a Failure "IN: what" (with line, vertex or
-/// face). Notes about repairs (re-oriented faces, triangulated polygons) go to stderr.
+/// face). Notes about repairs and defects (re-oriented faces, zero-area faces, vertices in
+/// no face...) are kept for print_notes(), so that a failing run prints one line only.
 Mesh load_mesh(const std::string& path);
+
+/// Prints the notes of the meshes read, one line each: "IN: note: what" (after a success).
+void print_notes();
 
 /// Fails unless OUT's extension is one of `allowed` (lower-case, without the dot).
 void check_output_path(const std::string& out, const std::vector<std::string>& allowed);
@@ -89,6 +93,8 @@ Enum enum_from(const std::string& name)
 
 /// Options shared by several subcommands.
 void add_laplacian_option(CLI::App& cmd, std::string& value);
+/// --mollification F: the intrinsic Delaunay Laplacian's mollification factor.
+void add_mollification_option(CLI::App& cmd, double& value);
 void add_area_option(CLI::App& cmd, std::string& value);
 
 /// An integer option read from its text (no wrap-around past 2^64), checked against [lo, hi]:

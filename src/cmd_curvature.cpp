@@ -16,6 +16,7 @@ struct Curvature_options
   // Defaults are the operations layer's, spelled by the name tables.
   std::string laplacian = lapmesh::to_string(lapmesh_ops::Curvature_settings{}.laplacian);
   std::string area = lapmesh::to_string(lapmesh_ops::Curvature_settings{}.area);
+  double mollification = lapmesh::default_mollification_factor;
   std::string quantity = "mean", colormap = lapmesh::to_string(lapmesh::Colormap::jet), range = "auto";
   double clip_percent = 0;
   bool quiet = false;
@@ -48,6 +49,7 @@ void run(const Curvature_options& o)
   lapmesh_ops::Curvature_settings settings;
   settings.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   settings.area = enum_from<lapmesh::Vertex_area>(o.area);
+  settings.mollification = o.mollification;
   const lapmesh::Vertex_curvatures c = or_fail(o.input, [&] { return lapmesh_ops::curvature(mesh, settings); });
 
   const Eigen::VectorXd& shown = o.quantity == "mean" ? c.mean : o.quantity == "gaussian" ? c.gaussian
@@ -69,7 +71,7 @@ void run(const Curvature_options& o)
     }
   });
   if(!o.quiet)
-    std::cout << o.input << ": " << num_vertices(mesh) << " vertices, " << num_faces(mesh) << " faces; " << o.quantity
+    std::cout << o.input << ": " << lapmesh_ops::vertex_count(mesh) << " vertices, " << num_faces(mesh) << " faces; " << o.quantity
               << " curvature (" << o.laplacian << ", " << o.area << " area) in [" << shown.minCoeff() << ", "
               << shown.maxCoeff() << "], colour range [" << range.min << ", " << range.max << "]; wrote "
               << o.output << '\n';
@@ -90,6 +92,7 @@ void register_curvature(CLI::App& app)
   add_input_output(*cmd, o->input, o->output, "output file (.csv, .ply or .off)");
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);
+  add_mollification_option(*cmd, o->mollification);
   cmd->add_option("--quantity", o->quantity, "quantity to colour: mean, gaussian, k1 or k2")
     ->check(CLI::IsMember({"mean", "gaussian", "k1", "k2"}))
     ->capture_default_str();

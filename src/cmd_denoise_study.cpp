@@ -337,7 +337,7 @@ void run(const Study_options& o)
     or_fail(o.plot, [&] { lapmesh_ops::write_text(o.plot, [&](std::ostream& out) { out << plot; }); });
 
   if(o.quiet) return;
-  std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << study.records.size() << " rows; wrote " << o.output
+  std::cout << o.input << ": " << lapmesh_ops::vertex_count(mesh) << " vertices; " << study.records.size() << " rows; wrote " << o.output
             << (o.plot.empty() ? "" : " and " + o.plot) << '\n';
   for(const lapmesh_ops::Study_summary_line& line : lapmesh_ops::summarize(study, s)) {
     const char* scheme = lapmesh::to_string(line.scheme);

@@ -30,7 +30,7 @@ void run(const Noise_options& o)
   const double sigma = or_fail(o.input, [&] { return lapmesh_ops::add_noise(mesh, s); });
   or_fail(o.output, [&] { lapmesh_ops::write_mesh(o.output, mesh); });
   if(!o.quiet)
-    std::cout << o.input << ": " << num_vertices(mesh) << " vertices; " << o.direction << " noise, sigma " << sigma
+    std::cout << o.input << ": " << lapmesh_ops::vertex_count(mesh) << " vertices; " << o.direction << " noise, sigma " << sigma
               << " (level " << o.level << " x " << o.scale << "), seed " << o.seed << "; wrote " << o.output << '\n';
 }
 

@@ -16,6 +16,7 @@ struct Reconstruct_options
   std::string input, output, k, save_basis, load_basis, basis_size;
   std::string laplacian = lapmesh::to_string(lapmesh_ops::Reconstruct_settings{}.laplacian);
   std::string area = lapmesh::to_string(lapmesh_ops::Reconstruct_settings{}.area);
+  double mollification = lapmesh::default_mollification_factor;
   bool quiet = false;
 };
 
@@ -23,11 +24,12 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
 {
   check_output_path(o.output, lapmesh_ops::mesh_output_formats());
   Mesh mesh = load_mesh(o.input);
-  const long long n = (long long)num_vertices(mesh);
+  const long long n = (long long)lapmesh_ops::vertex_count(mesh);
   lapmesh_ops::Reconstruct_settings s;
   s.k = spectral_k_from(o.input, o.k, n);
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
+  s.mollification = o.mollification;
   std::shared_ptr<const lapmesh::Spectral_basis> basis;
   if(!o.load_basis.empty()) {
     basis = or_fail(o.load_basis, [&] {
@@ -73,6 +75,7 @@ void register_reconstruct(CLI::App& app)
   cmd->add_option("-k", o->k, "number of eigenvectors, 1 <= k <= number of vertices")->required();
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);
+  add_mollification_option(*cmd, o->mollification);
   cmd->add_option("--save-basis", o->save_basis, "write the computed eigenpairs to this file");
   cmd->add_option("--load-basis", o->load_basis, "read the eigenpairs from this file instead of computing them");
   cmd->add_option("--basis-size", o->basis_size,

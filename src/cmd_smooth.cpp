@@ -16,6 +16,7 @@ struct Smooth_options
   std::string lambda_unit = lapmesh::to_string(lapmesh_ops::Time_step{}.unit);
   std::string laplacian = lapmesh::to_string(lapmesh_ops::Smooth_settings{}.laplacian);
   std::string area = lapmesh::to_string(lapmesh_ops::Smooth_settings{}.area);
+  double mollification = lapmesh::default_mollification_factor;
   long long iterations = 0;
   bool fixed_operator = false, restore_volume = false, restore_area = false, free_boundary = false,
        reuse_factorization = false, quiet = false;
@@ -27,6 +28,7 @@ void run(const Smooth_options& o)
   s.scheme = enum_from<lapmesh::Smoothing_scheme>(o.scheme);
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
+  s.mollification = o.mollification;
   s.iterations = o.iterations;
   s.fixed_operator = o.fixed_operator;
   s.restore_volume = o.restore_volume;
@@ -56,7 +58,7 @@ void run(const Smooth_options& o)
   print_warnings(o.input, result.warnings);
   or_fail(o.output, [&] { lapmesh_ops::write_mesh(o.output, mesh); });
   if(!o.quiet) {
-    std::cout << o.input << ": " << num_vertices(mesh) << " vertices (" << result.report.free_vertices << " free); "
+    std::cout << o.input << ": " << lapmesh_ops::vertex_count(mesh) << " vertices (" << result.report.free_vertices << " free); "
               << o.scheme << " " << o.laplacian << " smoothing, lambda " << result.lambda << ", "
               << result.report.iterations << " iteration(s)";
     if(s.scheme == lapmesh::Smoothing_scheme::explicit_euler) std::cout << ", stability bound " << result.stability_bound;
@@ -88,6 +90,7 @@ void register_smooth(CLI::App& app)
   cmd->add_option("--iterations", o->iterations, "number of iterations (> 0)")->required();
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);
+  add_mollification_option(*cmd, o->mollification);
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the input mesh for all iterations");
   cmd->add_flag("--restore-volume", o->restore_volume,
                 "rescale to the input's enclosed volume and centroid after each step (closed meshes)");

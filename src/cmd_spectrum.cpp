@@ -16,6 +16,7 @@ struct Spectrum_options
   std::string input, output, k;
   std::string laplacian = lapmesh::to_string(lapmesh_ops::Spectral_settings{}.laplacian);
   std::string area = lapmesh::to_string(lapmesh_ops::Spectral_settings{}.area);
+  double mollification = lapmesh::default_mollification_factor;
   bool quiet = false;
 };
 
@@ -23,11 +24,12 @@ void run(const Spectrum_options& o)
 {
   check_output_path(o.output, {"csv"});
   const Mesh mesh = load_mesh(o.input);
-  const long long n = (long long)num_vertices(mesh);
+  const long long n = (long long)lapmesh_ops::vertex_count(mesh);
   lapmesh_ops::Spectral_settings s;
   s.k = spectral_k_from(o.input, o.k, n);
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
+  s.mollification = o.mollification;
   std::shared_ptr<const lapmesh::Spectral_basis> basis;
   {
     Spectral_progress_line line;
@@ -63,6 +65,7 @@ void register_spectrum(CLI::App& app)
   cmd->add_option("-k", o->k, "number of eigenvalues, 1 <= k <= number of vertices")->required();
   add_laplacian_option(*cmd, o->laplacian);
   add_area_option(*cmd, o->area);
+  add_mollification_option(*cmd, o->mollification);
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success");
   cmd->callback([o] { run(*o); });
 }

@@ -25,6 +25,7 @@ int main(int argc, char** argv)
 
   try {
     app.parse(argc, argv);
+    lapmesh_cli::print_notes();
   } catch(const CLI::Success& e) {
     return app.exit(e);
   } catch(const CLI::ParseError& e) {

@@ -6,6 +6,9 @@
 
 #include <lapmesh/curvature.h>
 #include <lapmesh/internal/intrinsic_triangulation.h>
+#include <lapmesh/internal/laplacian_assembly.h>
+#include <lapmesh/io.h>
+#include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/shapes.h>
 #include <lapmesh/spectral_reconstruction.h>
@@ -103,7 +106,8 @@ TEST(IntrinsicDelaunay, WeightsBecomeNonNegativeAndEdgesDelaunay)
     EXPECT_LT((intrinsic.stiffness * ones).cwiseAbs().maxCoeff(), 1e-10 * intrinsic.stiffness.cwiseAbs().sum());
     const Eigen::SparseMatrix<double> St = intrinsic.stiffness.transpose();
     EXPECT_EQ((St - intrinsic.stiffness).norm(), 0.0);
-    EXPECT_NEAR(intrinsic.mass.sum(), area_before, 1e-12 * area_before);
+    EXPECT_NEAR(intrinsic.mass.sum(), area_before / it.sheets(), 1e-12 * area_before);  // per sheet
+    EXPECT_EQ(it.sheets(), c.name == "jittered patch" ? 2 : 1);  // open: the tufted cover
   });
 }
 
@@ -207,4 +211,212 @@ TEST(IntrinsicDelaunay, EverySubcommandTakesIt)
     EXPECT_EQ(text.find("nan"), std::string::npos);
     EXPECT_EQ(text.find("inf"), std::string::npos);
   });
+}
+
+// ---- meshes a Surface_mesh cannot hold, and vertices in no face ----------------------------
+
+namespace {
+
+using lapmesh::internal::Index;
+
+// (S, M) of the intrinsic Delaunay Laplacian straight from arrays (no Surface_mesh).
+lapmesh::Laplacian_pencil array_pencil(const std::vector<std::array<double, 3>>& points, std::vector<Index> tris,
+                                       Laplacian kind = Laplacian::intrinsic_delaunay)
+{
+  const auto t = lapmesh::internal::build_topology(Index(points.size()), std::move(tris));
+  lapmesh::internal::Positions P(points.size(), 3);
+  for(std::size_t i = 0; i < points.size(); ++i) P.row(Eigen::Index(i)) << points[i][0], points[i][1], points[i][2];
+  lapmesh::Laplacian_pencil out;
+  lapmesh::internal::assemble_pencil(t, P, kind, lapmesh::Vertex_area::barycentric, false, out);
+  return out;
+}
+
+double total_area(const std::vector<std::array<double, 3>>& points, const std::vector<Index>& tris)
+{
+  double area = 0;
+  for(std::size_t f = 0; f < tris.size() / 3; ++f) {
+    const Eigen::Vector3d a(points[tris[3 * f]].data()), b(points[tris[3 * f + 1]].data()),
+      c(points[tris[3 * f + 2]].data());
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  return area;
+}
+
+struct Soup_case
+{
+  std::string name;
+  std::vector<std::array<double, 3>> points;
+  std::vector<Index> triangles;
+};
+
+std::vector<Soup_case> non_manifold_cases()
+{
+  // Three pages of a book on the edge 0-1, one of them very obtuse.
+  Soup_case book{"three faces on an edge", {{0, 0, 0}, {1, 0, 0}, {0.5, 1, 0}, {0.5, -0.7, 0.7}, {0.5, 0.05, -0.02}},
+                 {0, 1, 2, 1, 0, 3, 0, 1, 4}};
+  // Two fans touching at vertex 0 (a bowtie), each a pair of triangles.
+  Soup_case bowtie{"bowtie vertex",
+                   {{0, 0, 0}, {1, 0.2, 0}, {1, -0.2, 0.1}, {-1, 0.3, 0}, {-1, -0.3, 0}, {1.2, 0, 0.4}},
+                   {0, 1, 2, 0, 3, 4, 1, 5, 2}};
+  // A quad whose two triangles are both present twice, once with each orientation.
+  Soup_case duplicated{"duplicated faces", {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                       {0, 1, 2, 0, 2, 3, 0, 1, 2, 0, 3, 2}};
+  // A fan around vertex 0 with a zero-area face (vertices 0, 1, 2 on a line).
+  Soup_case flat{"zero-area face", {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {1, 1, 0}, {1, -1, 0}},
+                 {0, 1, 3, 1, 2, 3, 1, 0, 4, 2, 1, 4, 0, 2, 1}};
+  // An open, jittered patch: some boundary edges face obtuse angles.
+  const lapmesh::Triangle_soup patch = lapmesh::plane_patch(8, 0.45, 11);
+  Soup_case open{"open jittered patch", patch.points, {}};
+  for(const auto& t : patch.triangles)
+    for(auto v : t) open.triangles.push_back(Index(v));
+  // One obtuse triangle: its cover is a pillow whose long edge flips into a loop, the flip
+  // of a quad whose outer edges are glued to each other.
+  Soup_case ear{"one obtuse triangle", {{0, 0, 0}, {1, 0, 0}, {0.5, 0.1, 0}}, {0, 1, 2}};
+  return {book, bowtie, duplicated, flat, open, ear};
+}
+
+} // namespace
+
+TEST(IntrinsicDelaunay, TuftedCoverTakesNonManifoldAndDegenerateInput)
+{
+  run_test_cases(non_manifold_cases(), [](const Soup_case& c) { return c.name; }, [](const Soup_case& c) {
+    const auto p = array_pencil(c.points, c.triangles);
+    ASSERT_TRUE(p.stiffness.toDense().allFinite());
+    ASSERT_TRUE(p.mass.allFinite());
+    EXPECT_GE(min_off_diagonal(p.stiffness), -1e-12);
+    const Eigen::SparseMatrix<double> St = p.stiffness.transpose();
+    EXPECT_EQ((St - p.stiffness).norm(), 0.0);
+    EXPECT_LT((p.stiffness * Eigen::VectorXd::Ones(p.mass.size())).cwiseAbs().maxCoeff(),
+              1e-12 * p.stiffness.cwiseAbs().sum());
+    // Each face counted once: the cover's mass is halved. Mollification gives a zero-area face
+    // an area of about sqrt(delta x its length), hence the loose bound.
+    const double area = total_area(c.points, c.triangles);
+    EXPECT_NEAR(p.mass.sum(), area, 1e-2 * area);
+    EXPECT_GT(p.mass.minCoeff(), 0.0);
+
+    const auto t = lapmesh::internal::build_topology(Index(c.points.size()), c.triangles);
+    lapmesh::internal::Positions P(c.points.size(), 3);
+    for(std::size_t i = 0; i < c.points.size(); ++i) P.row(Eigen::Index(i)) << c.points[i][0], c.points[i][1], c.points[i][2];
+    const auto it = lapmesh::internal::intrinsic_delaunay_triangulation(t, P, 1e-5);
+    EXPECT_EQ(it.sheets(), 2);
+    EXPECT_TRUE(it.is_delaunay());
+    for(Index h = 0; h < Index(it.twins().size()); ++h) EXPECT_GE(it.twins()[h], 0) << "the cover is closed";
+  });
+}
+
+TEST(IntrinsicDelaunay, CotangentRefusesNonManifoldEdgesNamingTheIntrinsicLaplacian)
+{
+  const Soup_case book = non_manifold_cases()[0];
+  for(Laplacian kind : {Laplacian::cotangent, Laplacian::uniform}) {
+    try {
+      array_pencil(book.points, book.triangles, kind);
+      ADD_FAILURE() << lapmesh::to_string(kind) << " took a non-manifold edge";
+    } catch(const lapmesh::Mesh_error& e) {
+      EXPECT_NE(std::string(e.what()).find("edge (0, 1)"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("intrinsic-delaunay"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(IntrinsicDelaunay, FacesStoredApartAndWeldedGiveTheMeshsOperators)
+{
+  // The sliver sphere as a Surface_mesh, and as a face-by-face soup welded back through the
+  // vertex index map: the same (S, M) for every Laplacian, the same curvatures.
+  const lapmesh::Triangle_soup soup = sliver_sphere(2);
+  const Mesh whole = to_mesh(soup);
+  Mesh apart;
+  auto weld = apart.add_property_map<Mesh::Vertex_index, int>("v:weld", -1).first;
+  for(const auto& t : soup.triangles) {
+    std::array<Mesh::Vertex_index, 3> face;
+    for(int a = 0; a < 3; ++a) {
+      const auto& p = soup.points[std::size_t(t[a])];
+      face[a] = apart.add_vertex(Point(p[0], p[1], p[2]));
+      weld[face[a]] = int(t[a]);
+    }
+    apart.add_face(face[0], face[1], face[2]);
+  }
+  ASSERT_EQ(num_vertices(apart), 3 * soup.triangles.size());
+  for(Laplacian kind : {Laplacian::uniform, Laplacian::cotangent, Laplacian::intrinsic_delaunay}) {
+    const auto a = lapmesh::laplacian_pencil(whole, LP::laplacian(kind));
+    const auto b = lapmesh::laplacian_pencil(apart, LP::laplacian(kind).vertex_index_map(weld));
+    EXPECT_LT((Eigen::MatrixXd(a.stiffness) - Eigen::MatrixXd(b.stiffness)).cwiseAbs().maxCoeff(), 1e-12)
+      << lapmesh::to_string(kind);
+    EXPECT_LT((a.mass - b.mass).cwiseAbs().maxCoeff(), 1e-15) << lapmesh::to_string(kind);
+  }
+  const auto ca = lapmesh::vertex_curvatures(whole, LP::laplacian(Laplacian::intrinsic_delaunay));
+  const auto cb = lapmesh::vertex_curvatures(apart, LP::laplacian(Laplacian::intrinsic_delaunay).vertex_index_map(weld));
+  EXPECT_LT((ca.mean - cb.mean).cwiseAbs().maxCoeff(), 1e-10 * ca.mean.cwiseAbs().maxCoeff());
+  EXPECT_LT((ca.gaussian - cb.gaussian).cwiseAbs().maxCoeff(), 1e-10 * ca.gaussian.cwiseAbs().maxCoeff());
+}
+
+TEST(IntrinsicDelaunay, VerticesInNoFaceFollowThePolicy)
+{
+  // The icosphere with two vertices in no face (one first, one last): zero rows and mass in
+  // the pencil, NaN curvature, the same values as without them elsewhere; spectral
+  // reconstruction and smoothing leave them where they are.
+  const lapmesh::Triangle_soup soup = lapmesh::icosphere(2);
+  const Mesh plain = to_mesh(soup);
+  Mesh with_extra;
+  const auto first = with_extra.add_vertex(Point(5, 5, 5));
+  std::vector<Mesh::Vertex_index> vs;
+  for(const auto& p : soup.points) vs.push_back(with_extra.add_vertex(Point(p[0], p[1], p[2])));
+  for(const auto& t : soup.triangles) with_extra.add_face(vs[t[0]], vs[t[1]], vs[t[2]]);
+  const auto last = with_extra.add_vertex(Point(-5, 0, 0));
+  const Eigen::Index n = Eigen::Index(soup.points.size());
+
+  for(Laplacian kind : {Laplacian::cotangent, Laplacian::intrinsic_delaunay}) {
+    const auto a = lapmesh::laplacian_pencil(plain, LP::laplacian(kind));
+    const auto b = lapmesh::laplacian_pencil(with_extra, LP::laplacian(kind));
+    ASSERT_EQ(b.mass.size(), n + 2);
+    EXPECT_EQ(b.mass[0], 0.0);
+    EXPECT_EQ(b.mass[n + 1], 0.0);
+    EXPECT_EQ(b.mass.segment(1, n), a.mass);
+    EXPECT_EQ(Eigen::MatrixXd(b.stiffness).block(1, 1, n, n), Eigen::MatrixXd(a.stiffness));
+    EXPECT_EQ(Eigen::MatrixXd(b.stiffness).row(0).cwiseAbs().sum(), 0.0);
+
+    const auto ca = lapmesh::vertex_curvatures(plain, LP::laplacian(kind));
+    const auto cb = lapmesh::vertex_curvatures(with_extra, LP::laplacian(kind));
+    EXPECT_TRUE(std::isnan(cb.mean[0]) && std::isnan(cb.gaussian[n + 1]) && std::isnan(cb.k1[0]));
+    EXPECT_EQ(cb.mean.segment(1, n), ca.mean);
+    EXPECT_EQ(cb.gaussian.segment(1, n), ca.gaussian);
+
+    Mesh rebuilt = with_extra;
+    lapmesh::spectral_reconstruction(rebuilt, 10, LP::laplacian(kind));
+    EXPECT_EQ(rebuilt.point(first), Point(5, 5, 5));
+    EXPECT_EQ(rebuilt.point(last), Point(-5, 0, 0));
+    Mesh smoothed = with_extra;
+    lapmesh::smooth_laplacian_implicit(smoothed, 0.01, LP::laplacian(kind));
+    EXPECT_EQ(smoothed.point(first), Point(5, 5, 5));
+    EXPECT_EQ(smoothed.point(last), Point(-5, 0, 0));
+    EXPECT_NE(smoothed.point(vs[0]), with_extra.point(vs[0]));
+  }
+}
+
+TEST(IntrinsicDelaunay, ReaderKeepsWhatRealMeshesHave)
+{
+  // A book of three faces (non-manifold edge), a bowtie vertex, a zero-area face, a face that
+  // uses a vertex twice and a vertex in no face: read, counted, and stored apart for welding.
+  const std::string path = scratch_dir() + "/dirty.off";
+  {
+    std::ofstream os(path);
+    os << "OFF\n9 6 0\n0 0 0\n1 0 0\n0.5 1 0\n0.5 -0.7 0.7\n0.5 0.05 -0.3\n-1 0.3 0\n-1 -0.3 0\n2 0 0\n7 7 7\n"
+          "3 0 1 2\n3 1 0 3\n3 0 1 4\n3 0 5 6\n3 1 7 7\n3 2 1 7\n";
+  }
+  Mesh m;
+  const lapmesh::io::Soup_report r = lapmesh::io::read_triangle_mesh(path, m);
+  EXPECT_EQ(r.dropped_faces, 1u);
+  EXPECT_EQ(r.isolated_vertices, 1u);
+  EXPECT_EQ(r.non_manifold_edges, 1u);
+  EXPECT_EQ(r.zero_area_faces, 0u);
+  ASSERT_EQ(r.input_vertex.size(), num_vertices(m));
+  EXPECT_EQ(num_faces(m), 5u);
+  auto weld = m.add_property_map<Mesh::Vertex_index, int>("v:weld", -1).first;
+  for(auto v : m.vertices()) weld[v] = int(r.input_vertex[v.idx()]);
+  const auto p = lapmesh::laplacian_pencil(m, LP::laplacian(Laplacian::intrinsic_delaunay).vertex_index_map(weld));
+  ASSERT_EQ(p.mass.size(), 9);
+  EXPECT_EQ(p.mass[8], 0.0);
+  EXPECT_GT(p.mass.head(8).minCoeff(), 0.0);
+  EXPECT_GE(min_off_diagonal(p.stiffness), -1e-12);
+  EXPECT_THROW(lapmesh::laplacian_pencil(m, LP::laplacian(Laplacian::cotangent).vertex_index_map(weld)),
+               lapmesh::Mesh_error);
 }

@@ -163,14 +163,16 @@ TEST(Io, BadInputsAreReportedWithLineOrElement)
   EXPECT_TRUE(contains(read_error("range.off", "OFF\n3 1 0\n" + tri + "3 0 1 7\n"), "vertex index 7 out of range"));
   EXPECT_TRUE(contains(read_error("nan.off", "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"), "vertex 1 has a non-finite"));
   EXPECT_TRUE(contains(read_error("inf.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 inf 0\n3 0 1 2\n"), "vertex 2 has a non-finite"));
-  EXPECT_TRUE(contains(read_error("zero.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n"), "face 0 has zero area"));
-  EXPECT_TRUE(contains(read_error("repeat.off", "OFF\n3 1 0\n" + tri + "3 0 1 1\n"), "face 0 uses the same vertex twice"));
-  EXPECT_TRUE(contains(read_error("isolated.off", "OFF\n4 1 0\n" + tri + "5 5 5\n3 0 1 2\n"), "vertex 3 is in no face"));
+  // Defects of real meshes are read and counted (their processing is tested in intrinsic_test).
+  EXPECT_EQ(read_error("zero.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n"), "");
+  EXPECT_EQ(read_error("isolated.off", "OFF\n4 1 0\n" + tri + "5 5 5\n3 0 1 2\n"), "");
+  EXPECT_EQ(read_error("repeat_and_good.off", "OFF\n3 2 0\n" + tri + "3 0 1 1\n3 0 1 2\n"), "");
+  // a face that uses a vertex twice is left out; none left is an error
+  EXPECT_TRUE(contains(read_error("repeat.off", "OFF\n3 1 0\n" + tri + "3 0 1 1\n"), "no faces (its 1 face(s) each use a vertex twice)"));
   EXPECT_TRUE(contains(read_error("nofaces.off", "OFF\n3 0 0\n" + tri), "no faces"));
   EXPECT_TRUE(contains(read_error("twoverts.off", "OFF\n3 1 0\n" + tri + "2 0 1\n"), "fewer than 3"));
-  // three triangles on the edge (0, 1)
-  EXPECT_TRUE(contains(read_error("nonmanifold.off", "OFF\n5 3 0\n0 0 0\n1 0 0\n0 1 0\n0 -1 0\n0 0 1\n3 0 1 2\n3 1 0 3\n3 0 1 4\n"),
-                       "more than two faces"));
+  // three triangles on the edge (0, 1): read with the faces stored apart
+  EXPECT_EQ(read_error("nonmanifold.off", "OFF\n5 3 0\n0 0 0\n1 0 0\n0 1 0\n0 -1 0\n0 0 1\n3 0 1 2\n3 1 0 3\n3 0 1 4\n"), "");
   // two fans touching at vertex 0 (a non-manifold vertex): accepted, the operators are
   // defined face by face and Surface_mesh represents it
   EXPECT_EQ(read_error("bowtie.off", "OFF\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n-1 0 0\n-1 -1 0\n3 0 1 2\n3 0 3 4\n"), "");
@@ -192,7 +194,11 @@ TEST(Io, BadInputsAreReportedWithLineOrElement)
       moebius += "3 " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(d) + "\n";
       moebius += "3 " + std::to_string(a) + " " + std::to_string(d) + " " + std::to_string(c) + "\n";
     }
-    EXPECT_TRUE(contains(read_error("moebius.off", moebius), "not orientable"));
+    Mesh m;
+    const auto r = lapmesh::io::read_triangle_mesh(write_text("moebius.off", moebius), m);
+    EXPECT_TRUE(r.non_orientable);
+    EXPECT_EQ(r.input_vertex.size(), num_vertices(m));  // stored apart: one orientation per face
+    EXPECT_EQ(num_vertices(m), 24u);
   }
   Mesh m;
   try {
@@ -303,13 +309,9 @@ TEST(Data, HandWrittenMeshes)
   }
   {
     Mesh m;
-    try {
-      read("bad_nonmanifold_edge.off", m);
-      ADD_FAILURE() << "a non-manifold edge was accepted";
-    } catch(const std::exception& e) {
-      EXPECT_NE(std::string(e.what()).find("non-manifold"), std::string::npos) << e.what();
-      EXPECT_NE(std::string(e.what()).find("face 2: edge (0, 1)"), std::string::npos) << e.what();
-    }
+    const auto r = read("bad_nonmanifold_edge.off", m);
+    EXPECT_EQ(r.non_manifold_edges, 1u);
+    EXPECT_FALSE(r.input_vertex.empty());
   }
   {
     Mesh m;

@@ -21,6 +21,7 @@
 #include <CGAL/boost/graph/named_params_helper.h>
 
 #include <cmath>
+#include <limits>
 
 namespace lapmesh {
 
@@ -54,9 +55,10 @@ inline void set_gaussian_and_principal(const Mesh_topology& t, const Eigen::Vect
 /// positions (L x = M^-1 S x), its mass as the vertex area, the cone angles of the intrinsic
 /// metric for K, and the input's area-weighted normals for the sign.
 inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, const Positions& P, Vertex_area area,
-                                                      bool with_gaussian, bool parallel)
+                                                      bool with_gaussian, bool parallel,
+                                                      double mollification = default_mollification_factor)
 {
-  const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, default_mollification_factor);
+  const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, mollification);
   Vertex_curvatures out;
   Eigen::SparseMatrix<double> S;
   assemble_intrinsic_pencil(it, area, S, out.area);
@@ -87,9 +89,12 @@ inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, co
 
 /// All curvatures from the flat arrays; `with_gaussian` = false skips the angles.
 inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
-                                            Vertex_area area, bool with_gaussian, bool parallel)
+                                            Vertex_area area, bool with_gaussian, bool parallel,
+                                            double mollification = default_mollification_factor)
 {
-  if(laplacian == Laplacian::intrinsic_delaunay) return compute_intrinsic_curvatures(t, P, area, with_gaussian, parallel);
+  if(laplacian == Laplacian::intrinsic_delaunay)
+    return compute_intrinsic_curvatures(t, P, area, with_gaussian, parallel, mollification);
+  require_manifold(t, to_string(laplacian));
   Corner_geometry g;
   compute_corner_geometry(t, P, Corner_request{area, with_gaussian, true}, parallel, g);
 
@@ -127,16 +132,31 @@ template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParamete
 auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_gaussian)
 {
   auto mesh = extract_mesh(tm, np);
-  Vertex_curvatures c = compute_curvatures(mesh.topology, mesh.positions, choose_laplacian(np),
-                                           choose_vertex_area(np), with_gaussian, is_parallel<ConcurrencyTag>());
-  return std::make_pair(std::move(mesh.vertices), std::move(c));
+  Vertex_curvatures c = compute_curvatures(mesh.topology, mesh.positions, choose_laplacian(np), choose_vertex_area(np),
+                                           with_gaussian, is_parallel<ConcurrencyTag>(), choose_mollification(np));
+  if(mesh.num_rows_in_no_face() > 0) {  // curvature is undefined there: NaN, and a zero area
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    c.mean = mesh.to_rows(c.mean, nan);
+    c.area = mesh.to_rows(c.area, 0.0);
+    c.normal = mesh.to_rows(c.normal, nan);
+    c.laplacian = mesh.to_rows(c.laplacian, nan);
+    if(with_gaussian) {
+      c.gaussian = mesh.to_rows(c.gaussian, nan);
+      c.k1 = mesh.to_rows(c.k1, nan);
+      c.k2 = mesh.to_rows(c.k2, nan);
+    }
+  }
+  return std::make_pair(std::move(mesh.vertex_rows), std::move(c));
 }
 
-template <typename Tag, typename NamedParameters, typename Vertices, typename Values>
-void write_if_given(const NamedParameters& np, Tag tag, const Vertices& vertices, const Values& values)
+template <typename Tag, typename NamedParameters, typename VertexRows, typename Values>
+void write_if_given(const NamedParameters& np, Tag tag, const VertexRows& vertex_rows, const Values& values)
 {
-  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, Tag>::value)
-    write_vertex_values(vertices, values, CGAL::parameters::get_parameter(np, tag));
+  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, Tag>::value) {
+    auto map = CGAL::parameters::get_parameter(np, tag);
+    using Value = typename boost::property_traits<decltype(map)>::value_type;
+    for(const auto& [v, r] : vertex_rows) put(map, v, static_cast<Value>(values[r]));
+  }
 }
 
 } // namespace internal
@@ -148,7 +168,9 @@ void write_if_given(const NamedParameters& np, Tag tag, const Vertices& vertices
 /// One pass over the faces and one gather per vertex; no matrix is assembled.
 /// @tparam ConcurrencyTag `CGAL::Sequential_tag` (default) or `CGAL::Parallel_tag`
 /// @tparam TriangleMesh a model of `FaceListGraph` whose faces are triangles
-/// @param tm the mesh: every vertex in a face, no zero-area face, manifold edges
+/// @param tm the mesh: no zero-area face and manifold edges, except for the intrinsic
+///   Delaunay Laplacian, which takes any triangles. Vertices in no face get NaN curvatures,
+///   NaN normals and a zero area.
 /// @param np an optional sequence of named parameters among the ones below
 ///
 /// | named parameter | description | type | default |
@@ -156,12 +178,12 @@ void write_if_given(const NamedParameters& np, Tag tag, const Vertices& vertices
 /// | `lapmesh::parameters::laplacian` | the Laplacian of H | `lapmesh::Laplacian` | `Laplacian::cotangent` |
 /// | `lapmesh::parameters::vertex_area` | the area A_i dividing the cotangent sums and the angle deficit | `lapmesh::Vertex_area` | `Vertex_area::barycentric` (use `mixed` for accuracy) |
 /// | `CGAL::parameters::vertex_point_map` | the positions | readable vertex map to a point with `x()`, `y()`, `z()` | `get(CGAL::vertex_point, tm)` |
-/// | `CGAL::parameters::vertex_index_map` | the vertex numbering: a bijection onto 0..n-1 | readable vertex map to an integer | the position in `vertices(tm)` |
+/// | `CGAL::parameters::vertex_index_map` | the vertex numbering onto 0..n-1 (equal indices weld vertices) | readable vertex map to an integer | the position in `vertices(tm)` |
 ///
 /// @return the curvatures, normals, areas and Laplacians, entry i = vertex i
 /// @warning computed in double precision whatever the kernel's number type.
-/// @throws Mesh_error for a zero-area face, a vertex with non-positive area, a vertex in no face,
-///   non-manifold edges or non-finite coordinates, naming the element
+/// @throws Mesh_error for a zero-area face, a vertex with non-positive area, non-manifold edges
+///   (except with the intrinsic Delaunay Laplacian) or non-finite coordinates, naming the element
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 Vertex_curvatures vertex_curvatures(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
@@ -199,8 +221,7 @@ void compute_vertex_curvatures(const TriangleMesh& tm, const NamedParameters& np
   if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_normal_map_t>::value) {
     auto normals = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_normal_map);
     using Vector = typename boost::property_traits<decltype(normals)>::value_type;
-    for(std::size_t i = 0; i < vertices.size(); ++i)
-      put(normals, vertices[i], Vector(c.normal(i, 0), c.normal(i, 1), c.normal(i, 2)));
+    for(const auto& [v, r] : vertices) put(normals, v, Vector(c.normal(r, 0), c.normal(r, 1), c.normal(r, 2)));
   }
 }
 
@@ -214,7 +235,9 @@ void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curv
                             const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto [vertices, c] = internal::curvatures_of<ConcurrencyTag>(tm, np, false);
-  internal::write_vertex_values(vertices, c.mean, mean_curvature_map);
+  for(const auto& [v, r] : vertices)
+    put(mean_curvature_map, v,
+        static_cast<typename boost::property_traits<VertexCurvatureMap>::value_type>(c.mean[r]));
 }
 
 /// @brief writes the angle-deficit Gaussian curvature K into `gaussian_curvature_map`.

@@ -63,7 +63,7 @@ public:
     const Eigen::RowVector3d lo = reference.colwise().minCoeff(), hi = reference.colwise().maxCoeff();
     m_diagonal = (hi - lo).norm();
     if(!(m_diagonal > 0)) throw Mesh_error("the reference mesh has a zero bounding box");
-    m_closed = t.num_boundary_edges == 0;
+    m_closed = t.manifold && t.num_boundary_edges == 0;
     if(m_closed) {
       Eigen::Vector3d c;
       volume_and_centroid(t, reference, m_volume, c);
@@ -108,7 +108,10 @@ public:
       d.volume_change = (V - m_volume) / std::abs(m_volume);
     }
     auto vpm = get(CGAL::vertex_point, m_mesh);
-    for(Index i = 0; i < P.rows(); ++i) put(vpm, Sm::Vertex_index(std::uint32_t(i)), Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
+    for(Sm::Vertex_index v : m_mesh.vertices()) {
+      const Index i = m_vertex_row.empty() ? Index(v.idx()) : m_vertex_row[v.idx()];
+      put(vpm, v, Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
+    }
     namespace PMP = CGAL::Polygon_mesh_processing;
     // The grid follows the larger of the two meshes' mean edge lengths, so that a blown-up
     // mesh (explicit steps above the stability bound) is not sampled with millions of points.
@@ -139,19 +142,28 @@ private:
     return N;
   }
 
-  void build(Sm& sm, const Positions& P) const
+  // The faces as a Surface_mesh for CGAL's sampling; a mesh it cannot hold as it is (a
+  // non-manifold edge or vertex) gets each face on vertices of its own (m_vertex_row).
+  void build(Sm& sm, const Positions& P)
   {
     sm.clear();
+    m_vertex_row.clear();
     for(Index i = 0; i < P.rows(); ++i) sm.add_vertex(Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
-    for(Index f = 0; f < m_t->num_faces; ++f) {
-      const auto face = sm.add_face(Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f])),
-                                    Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 1])),
-                                    Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 2])));
-      if(face == Sm::null_face())
-        throw Mesh_error("face " + std::to_string(f) +
-                           ": the Hausdorff distance needs a manifold mesh (this face makes a vertex non-manifold)",
-                         Mesh_error::Element::face, f);
+    bool held = true;
+    for(Index f = 0; f < m_t->num_faces && held; ++f)
+      held = sm.add_face(Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f])),
+                         Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 1])),
+                         Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 2]))) != Sm::null_face();
+    if(held) return;
+    sm.clear();
+    for(Index c = 0; c < 3 * m_t->num_faces; ++c) {
+      const Index i = m_t->triangles[c];
+      sm.add_vertex(Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
+      m_vertex_row.push_back(i);
     }
+    for(Index f = 0; f < m_t->num_faces; ++f)
+      sm.add_face(Sm::Vertex_index(std::uint32_t(3 * f)), Sm::Vertex_index(std::uint32_t(3 * f + 1)),
+                  Sm::Vertex_index(std::uint32_t(3 * f + 2)));
   }
 
   const Mesh_topology* m_t;
@@ -159,6 +171,7 @@ private:
   double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
   bool m_closed = false;
   Sm m_reference_mesh, m_mesh;
+  std::vector<Index> m_vertex_row;  // the row of each vertex of the meshes; empty: the identity
 };
 
 } // namespace internal

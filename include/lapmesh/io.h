@@ -87,15 +87,20 @@ inline Polygon_soup read_polygon_soup(const std::string& path)
   return internal::parse_mesh(file.view(), ext);
 }
 
-/// Builds `g` (emptied first) from validated triangles, vertex i = point i.
-/// Throws Mesh_error if a face cannot be added (a non-manifold vertex).
+/// Builds `g` (emptied first) from validated triangles, vertex i = point i. A mesh that `g`
+/// cannot hold as it is (a non-manifold edge or vertex, faces that disagree in
+/// orientation) is stored with each face on vertices of its own, and `input_vertex` (when
+/// given) receives the input vertex of every vertex of `g`, to weld them back through the
+/// `vertex_index_map` named parameter; it is left empty otherwise.
 template <typename MutableFaceGraph>
-void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<std::size_t, 3>>& tris, MutableFaceGraph& g)
+void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<std::size_t, 3>>& tris, MutableFaceGraph& g,
+                       std::vector<std::size_t>* input_vertex = nullptr)
 {
   using GT = boost::graph_traits<MutableFaceGraph>;
   using Point = typename boost::property_traits<
     typename boost::property_map<MutableFaceGraph, CGAL::vertex_point_t>::type>::value_type;
   CGAL::clear(g);
+  if(input_vertex) input_vertex->clear();
   auto vpm = get(CGAL::vertex_point, g);
   std::vector<typename GT::vertex_descriptor> vs;
   vs.reserve(soup.points.size());
@@ -103,25 +108,48 @@ void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<st
     vs.push_back(add_vertex(g));
     put(vpm, vs.back(), Point(p[0], p[1], p[2]));
   }
-  for(std::size_t f = 0; f < tris.size(); ++f) {
+  bool held = true;
+  for(std::size_t f = 0; f < tris.size() && held; ++f) {
     const std::array<typename GT::vertex_descriptor, 3> face = {vs[tris[f][0]], vs[tris[f][1]], vs[tris[f][2]]};
-    if(CGAL::Euler::add_face(face, g) == GT::null_face())
-      throw Mesh_error("triangle " + std::to_string(f) + " (" + std::to_string(tris[f][0]) + ", " +
-                         std::to_string(tris[f][1]) + ", " + std::to_string(tris[f][2]) +
-                         ") makes a vertex non-manifold (two fans of faces touching at one vertex)",
-                       Mesh_error::Element::face, std::int64_t(f));
+    held = CGAL::Euler::add_face(face, g) != GT::null_face();
   }
+  if(held) return;
+  if(!input_vertex)
+    throw Mesh_error("the mesh has non-manifold edges or vertices, or faces that disagree in orientation: it "
+                     "can only be read with its faces stored apart (give triangles_to_mesh an input_vertex)");
+  // Each face on vertices of its own, then the vertices in no face, in input order.
+  CGAL::clear(g);
+  vpm = get(CGAL::vertex_point, g);
+  std::vector<char> in_face(soup.points.size(), 0);
+  input_vertex->reserve(3 * tris.size());
+  for(const auto& t : tris) {
+    std::array<typename GT::vertex_descriptor, 3> face;
+    for(int a = 0; a < 3; ++a) {
+      face[a] = add_vertex(g);
+      put(vpm, face[a], Point(soup.points[t[a]][0], soup.points[t[a]][1], soup.points[t[a]][2]));
+      input_vertex->push_back(t[a]);
+      in_face[t[a]] = 1;
+    }
+    CGAL::Euler::add_face(face, g);
+  }
+  for(std::size_t i = 0; i < soup.points.size(); ++i)
+    if(!in_face[i]) {
+      put(vpm, add_vertex(g), Point(soup.points[i][0], soup.points[i][1], soup.points[i][2]));
+      input_vertex->push_back(i);
+    }
 }
 
 /// Reads a triangle mesh (any MutableFaceGraph) from OFF/OBJ/PLY/STL, validating it and
-/// keeping the input vertex order. Throws Io_error or Mesh_error.
+/// keeping the input vertex order; a mesh `g` cannot hold as it is comes with its faces
+/// stored apart and the report's `input_vertex` to weld them (triangles_to_mesh()).
+/// Throws Io_error or Mesh_error.
 template <typename MutableFaceGraph>
 Soup_report read_triangle_mesh(const std::string& path, MutableFaceGraph& g)
 {
   const Polygon_soup soup = read_polygon_soup(path);
   Soup_report report;
   const auto tris = soup_to_triangles(soup, &report);
-  triangles_to_mesh(soup, tris, g);
+  triangles_to_mesh(soup, tris, g, &report.input_vertex);
   return report;
 }
 
@@ -258,10 +286,11 @@ inline std::vector<std::array<std::size_t, 3>> triangle_list(const lapmesh::inte
 /// Positions and triangles of a face graph in vertex-index order (the order in which
 /// triangles_to_mesh() added the vertices, for meshes it built). Reads the arrays only: no
 /// topology is built (writing a mesh does not need one).
-template <typename FaceGraph>
-std::pair<Vertex_vectors, std::vector<std::array<std::size_t, 3>>> mesh_arrays(const FaceGraph& g)
+template <typename FaceGraph, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+std::pair<Vertex_vectors, std::vector<std::array<std::size_t, 3>>>
+mesh_arrays(const FaceGraph& g, const NamedParameters& np = CGAL::parameters::default_values())
 {
-  auto arrays = lapmesh::internal::extract_arrays(g, CGAL::parameters::default_values());
+  auto arrays = lapmesh::internal::extract_arrays(g, np);
   std::vector<std::array<std::size_t, 3>> tris(arrays.triangles.size() / 3);
   for(std::size_t f = 0; f < tris.size(); ++f)
     for(std::size_t c = 0; c < 3; ++c) tris[f][c] = std::size_t(arrays.triangles[3 * f + c]);

@@ -30,13 +30,17 @@ namespace lapmesh {
 ///
 /// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag` (TBB)
 /// @tparam TriangleMesh a model of `FaceListGraph` whose faces are triangles
-/// @param tm the mesh: every vertex in a face, no zero-area face, manifold edges
+/// @param tm the mesh: no zero-area face and manifold edges, except for the intrinsic
+///   Delaunay Laplacian, which takes any triangles. Vertices in no face get zero rows,
+///   columns and mass.
 /// @param np optional named parameters:
 ///   - `lapmesh::parameters::laplacian` (`Laplacian`, default `cotangent`)
 ///   - `lapmesh::parameters::vertex_area` (`Vertex_area`, default `barycentric`)
+///   - `lapmesh::parameters::mollification_factor` (double, default 1e-5; intrinsic Delaunay only)
 ///   - `CGAL::parameters::vertex_point_map` (default: the internal point map of `tm`)
-///   - `CGAL::parameters::vertex_index_map` (a bijection onto 0..n-1; default: the position of
-///     the vertex in `vertices(tm)`, which is `v.idx()` for a Surface_mesh without garbage)
+///   - `CGAL::parameters::vertex_index_map` (onto 0..n-1; vertices with the same index are
+///     welded into one; default: the position of the vertex in `vertices(tm)`, which is
+///     `v.idx()` for a Surface_mesh without garbage)
 /// @return (S, M) with row i = vertex i of that numbering
 /// @throws Mesh_error naming the vertex or face for invalid or degenerate input
 /// @warning computed in double precision whatever the kernel's number type.
@@ -48,8 +52,12 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   const auto mesh = internal::extract_mesh(tm, np);
   Laplacian_pencil out;
   internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
-                            internal::choose_vertex_area(np),
-                            internal::is_parallel<ConcurrencyTag>(), out);
+                            internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
+                            internal::choose_mollification(np));
+  if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
+    out.stiffness = mesh.to_rows(out.stiffness);
+    out.mass = mesh.to_rows(out.mass, 0.0);
+  }
   return out;
 }
 
@@ -79,8 +87,9 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 Eigen::VectorXd vertex_areas(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto mesh = internal::extract_mesh(tm, np);
-  return internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
-                                internal::is_parallel<ConcurrencyTag>());
+  return mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
+                                             internal::is_parallel<ConcurrencyTag>()),
+                      0.0);
 }
 
 /// @brief writes the vertex areas A_i into the writable vertex property map `area_map`.
@@ -90,10 +99,12 @@ void compute_vertex_areas(const TriangleMesh& tm, VertexAreaMap area_map,
                           const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto mesh = internal::extract_mesh(tm, np);
-  internal::write_vertex_values(mesh.vertices,
-                                internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
-                                                       internal::is_parallel<ConcurrencyTag>()),
-                                area_map);
+  internal::write_row_values(mesh,
+                             mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions,
+                                                                 internal::choose_vertex_area(np),
+                                                                 internal::is_parallel<ConcurrencyTag>()),
+                                          0.0),
+                             area_map);
 }
 
 } // namespace lapmesh

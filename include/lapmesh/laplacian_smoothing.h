@@ -99,6 +99,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.scheme = scheme;
   s.laplacian = choose_laplacian(np);
   s.area = choose_vertex_area(np);
+  s.mollification = choose_mollification(np);
   s.lambda = lambda;
   s.iterations = int(choose_parameter(get_parameter(np, CGAL::internal_np::number_of_iterations), 1));
   s.fixed_operator = choose_parameter(get_parameter(np, internal_np::fixed_operator), false);
@@ -152,11 +153,10 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
   Vpm vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point), get_property_map(CGAL::vertex_point, tm));
   using Point = typename boost::property_traits<Vpm>::value_type;
-  for(std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const auto r = mesh.positions.row(Index(i));
-    if(r == before.row(Index(i))) continue;
-    put(vpm, mesh.vertices[i], Point(r[0], r[1], r[2]));
-  }
+  mesh.for_each_vertex([&](auto v, Index i) {
+    const auto r = mesh.positions.row(i);
+    if(r != before.row(i)) put(vpm, v, Point(r[0], r[1], r[2]));
+  });
   return report;
 }
 
@@ -235,7 +235,8 @@ double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& n
   Laplacian_pencil pencil;
   const Laplacian lap = internal::choose_laplacian(np);
   const Vertex_area area = internal::choose_vertex_area(np);
-  internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil);
+  internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil,
+                            internal::choose_mollification(np));
   internal::require_positive_mass(lap, pencil.mass, area);
   const bool fix_boundary =
     CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::fix_boundary), true);

@@ -129,10 +129,10 @@ double add_noise(TriangleMesh& tm, double level, const NamedParameters& np = CGA
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
   Vpm vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point), get_property_map(CGAL::vertex_point, tm));
   using Point = typename boost::property_traits<Vpm>::value_type;
-  for(std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const auto r = mesh.positions.row(internal::Index(i));
-    put(vpm, mesh.vertices[i], Point(r[0], r[1], r[2]));
-  }
+  mesh.for_each_vertex([&](auto v, internal::Index i) {
+    const auto r = mesh.positions.row(i);
+    put(vpm, v, Point(r[0], r[1], r[2]));
+  });
   return sigma;
 }
 

@@ -56,6 +56,10 @@ LAPMESH_NAMED_PARAMETER(vertex_max_curvature_map)
 LAPMESH_NAMED_PARAMETER(vertex_min_curvature_map)
 /// Writable vertex property map for the vertex area A_i.
 LAPMESH_NAMED_PARAMETER(vertex_area_map)
+/// double >= 0; default `default_mollification_factor`: the intrinsic Delaunay Laplacian
+/// raises every edge length by the least epsilon that gives each triangle a triangle-inequality
+/// margin of this factor x the mean edge length (0: no mollification).
+LAPMESH_NAMED_PARAMETER(mollification_factor)
 
 namespace parameters {
 using CGAL::parameters::default_values;

@@ -103,10 +103,14 @@ public:
     const Vertex_area area = internal::choose_vertex_area(np);
     Laplacian_pencil pencil;
     internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, internal::is_parallel<ConcurrencyTag>(),
-                              pencil);
+                              pencil, internal::choose_mollification(np));
     Spectral_basis b = from_pencil(pencil, k, internal::choose_spectral_options(np), area);
     b.m_laplacian = lap;
     b.m_area = area;
+    if(mesh.num_rows_in_no_face() > 0) {  // zero eigenvector entries and mass there
+      b.m_vectors = mesh.to_rows(b.m_vectors, 0.0);
+      b.m_mass = mesh.to_rows(b.m_mass, 0.0);
+    }
     return b;
   }
 
@@ -162,9 +166,13 @@ public:
   }
 
   /// @brief x <- sum_{i<k} (x^T M phi_i) phi_i for each column of X (n x c), e.g. positions.
+  /// Rows of zero mass (vertices in no face, outside the operator) keep their values.
   Eigen::MatrixXd reconstruct(const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::Index k) const
   {
-    return synthesize(project(X, k));
+    Eigen::MatrixXd out = synthesize(project(X, k));
+    for(Eigen::Index i = 0; i < out.rows(); ++i)
+      if(m_mass[i] == 0) out.row(i) = X.row(i);
+    return out;
   }
 
   /// @brief true when lambda_{k-1} and lambda_k agree to 1e-8 relative: the reconstruction
@@ -277,12 +285,15 @@ bool spectral_reconstruction(TriangleMesh& tm, Eigen::Index k,
 {
   const auto mesh = internal::extract_mesh(tm, np);
   const Spectral_basis b = Spectral_basis::compute<ConcurrencyTag>(tm, k, np);
-  const Eigen::MatrixXd P = b.reconstruct(mesh.positions, k);
+  const Eigen::MatrixXd P = b.reconstruct(mesh.to_rows(mesh.positions, 0.0), k);
   auto vpm = CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_point),
                                                 get_property_map(CGAL::vertex_point, tm));
   using Point = typename boost::property_traits<decltype(vpm)>::value_type;
-  for(std::size_t i = 0; i < mesh.vertices.size(); ++i)
-    put(vpm, mesh.vertices[i], Point(P(Eigen::Index(i), 0), P(Eigen::Index(i), 1), P(Eigen::Index(i), 2)));
+  const bool all_rows = mesh.num_rows_in_no_face() == 0;
+  mesh.for_each_vertex([&](auto v, internal::Index i) {
+    const Eigen::Index r = all_rows ? i : mesh.row[i];
+    put(vpm, v, Point(P(r, 0), P(r, 1), P(r, 2)));
+  });
   return b.splits_eigenspace(k);
 }
 

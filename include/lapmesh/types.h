@@ -72,6 +72,10 @@ struct Enum_names<Laplacian>
   }};
 };
 
+/// The intrinsic Delaunay Laplacian's default mollification margin delta, in mean edge lengths
+/// (named parameter `lapmesh::parameters::mollification_factor`).
+constexpr double default_mollification_factor = 1e-5;
+
 /// The symmetric generalized pair (S, M) of a Laplacian: L = M^-1 S (doc/conventions.md).
 struct Laplacian_pencil
 {
@@ -419,6 +423,16 @@ struct Soup_report
 {
   std::size_t triangulated_polygons = 0;  ///< input faces with more than 3 vertices
   std::size_t flipped_faces = 0;          ///< faces re-oriented for consistency
+  std::size_t dropped_faces = 0;          ///< faces that use a vertex twice (no triangle), left out
+  std::size_t zero_area_faces = 0;        ///< triangles with numerically undefined angles
+  std::size_t isolated_vertices = 0;      ///< vertices in no face
+  std::size_t non_manifold_edges = 0;     ///< edges with more than two faces
+  bool non_orientable = false;            ///< no consistent orientation exists
+  /// When the mesh cannot be held as it is (non-manifold edges or vertices, no consistent
+  /// orientation), its faces are stored apart, each with vertices of its own: the input
+  /// vertex of each vertex of the graph, in `vertices(g)` order, to weld them back (the
+  /// `vertex_index_map` of lapmesh's functions). Empty when vertex i is input vertex i.
+  std::vector<std::size_t> input_vertex;
 };
 
 } // namespace io

@@ -421,10 +421,10 @@ PYBIND11_MODULE(_lapmesh, m)
                            "the vertex positions, float64 (n, 3) (a copy)")
     .def_property_readonly("F", [](const Validated_mesh& m) { return faces_array(lapmesh_ops::triangles(*m.mesh)); },
                            "the triangles, int64 (m, 3), as oriented by the validation (a copy)")
-    .def_property_readonly("num_vertices", [](const Validated_mesh& m) { return num_vertices(*m.mesh); })
+    .def_property_readonly("num_vertices", [](const Validated_mesh& m) { return lapmesh_ops::vertex_count(*m.mesh); })
     .def_property_readonly("num_faces", [](const Validated_mesh& m) { return num_faces(*m.mesh); })
     .def("__repr__", [](const Validated_mesh& m) {
-      return "<lapmesh.Mesh: " + std::to_string(num_vertices(*m.mesh)) + " vertices, " +
+      return "<lapmesh.Mesh: " + std::to_string(lapmesh_ops::vertex_count(*m.mesh)) + " vertices, " +
              std::to_string(num_faces(*m.mesh)) + " faces>";
     });
 

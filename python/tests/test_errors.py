@@ -182,3 +182,31 @@ def test_write_mesh_checks_indices_not_geometry(cow, tmp_path):
     V2[F[0, 1]] = V2[F[0, 0]]  # a degenerate result is written as it is (as the CLI writes it)
     lapmesh.write_mesh(str(tmp_path / "d.off"), V2, F)
     assert os.path.getsize(tmp_path / "d.off") > 0
+
+
+def test_defects_of_real_meshes_take_the_intrinsic_laplacian(cow):
+    # A zero-area face, a third face on an edge, and a vertex in no face: the cotangent
+    # Laplacian refuses the first two naming the intrinsic one, which takes all three.
+    import scipy.sparse
+
+    V, F = cow
+    V = np.vstack([V, V[:1] + 5.0])  # the last vertex is in no face
+    F = F.copy()
+    V[F[3, 1]] = V[F[3, 0]]
+    with pytest.raises(lapmesh.MeshError, match="intrinsic-delaunay"):
+        lapmesh.curvatures(V, F)
+    a, b = F[10, 0], F[10, 1]
+    book = np.vstack([F, [[a, b, F[200, 2]]]])
+    with pytest.raises(lapmesh.MeshError, match="non-manifold"):
+        lapmesh.laplacian(V, book)
+    c = lapmesh.curvatures(V, book, laplacian="intrinsic-delaunay")
+    assert np.isnan(c.mean[-1]) and c.area[-1] == 0
+    assert np.isfinite(c.mean[:-1]).all() and np.isfinite(c.gaussian[:-1]).all()
+    mesh = lapmesh.Mesh(V, book)
+    assert mesh.num_vertices == len(V)
+    S, M = lapmesh.laplacian(mesh, laplacian="intrinsic-delaunay")
+    assert S.shape == (len(V), len(V))
+    off = S - scipy.sparse.diags(S.diagonal())
+    assert off.min() >= -1e-12
+    V2, _ = lapmesh.smooth(mesh, scheme="implicit", lam="auto", iterations=2, laplacian="intrinsic-delaunay")
+    assert (V2[-1] == V[-1]).all() and np.isfinite(V2).all()

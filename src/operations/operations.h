@@ -65,13 +65,16 @@ struct Loaded_mesh
   std::vector<std::string> notes;  ///< "triangulated N polygon(s)", "re-oriented N face(s) consistently"
 };
 
-/// Reads and validates a mesh (OFF, OBJ, PLY, STL). Throws lapmesh::Io_error, Mesh_error.
+/// Reads and validates a mesh (OFF, OBJ, PLY, STL). Real-world defects are processed and
+/// noted rather than refused: zero-area faces, vertices in no face, non-manifold edges and
+/// vertices, faces that disagree in orientation (io::soup_to_triangles()). A mesh that a
+/// Surface_mesh cannot hold as it is gets its faces stored apart and welded back by vertex
+/// number in every operation below. Throws lapmesh::Io_error, Mesh_error.
 Loaded_mesh load_mesh(const std::string& path);
 
-/// Validates a polygon soup as load_mesh() validates a file (finite coordinates, index
-/// ranges, every vertex in a face, no zero-area face, manifold), triangulates polygons and
-/// orients the faces consistently: for meshes that come as arrays (the Python module).
-/// Throws lapmesh::Mesh_error.
+/// Validates a polygon soup as load_mesh() validates a file, triangulates polygons and
+/// orients the faces consistently where possible: for meshes that come as arrays (the
+/// Python module). Throws lapmesh::Mesh_error.
 Loaded_mesh mesh_from_soup(const lapmesh::io::Polygon_soup& soup);
 
 /// The mesh formats written by write_mesh(), by extension (lower case, no dot).
@@ -92,6 +95,8 @@ void put_double(std::ostream& os, double x);
 /// The lower-case extension of a path without the dot ("off", "csv", ...).
 std::string extension_of(const std::string& path);
 
+/// The number of vertices of the input (rows of every per-vertex result).
+std::size_t vertex_count(const Mesh& mesh);
 /// Vertex positions, row i = vertex i.
 lapmesh::Vertex_vectors positions(const Mesh& mesh);
 /// Overwrites the vertex positions with the rows of `P` (as many as vertices).
@@ -107,6 +112,7 @@ struct Curvature_settings
 {
   lapmesh::Laplacian laplacian = lapmesh::Laplacian::cotangent;
   lapmesh::Vertex_area area = lapmesh::Vertex_area::barycentric;
+  double mollification = lapmesh::default_mollification_factor;  ///< intrinsic Delaunay only
 };
 
 /// Mean, Gaussian and principal curvatures per vertex (in parallel where TBB is available).
@@ -119,6 +125,7 @@ struct Spectral_settings
   long long k = 1;  ///< eigenpairs wanted, 1 <= k <= number of vertices
   lapmesh::Laplacian laplacian = lapmesh::Laplacian::cotangent;
   lapmesh::Vertex_area area = lapmesh::Vertex_area::barycentric;
+  double mollification = lapmesh::default_mollification_factor;  ///< intrinsic Delaunay only
   std::function<void(const lapmesh::Spectral_progress&)> progress;  ///< optional; may throw to cancel
 };
 
@@ -178,6 +185,7 @@ struct Reconstruct_settings
   long long basis_size = 0;  ///< pairs to compute when no basis is given (at least k)
   lapmesh::Laplacian laplacian = lapmesh::Laplacian::cotangent;
   lapmesh::Vertex_area area = lapmesh::Vertex_area::barycentric;
+  double mollification = lapmesh::default_mollification_factor;  ///< intrinsic Delaunay only
   std::function<void(const lapmesh::Spectral_progress&)> progress;  ///< optional; may throw to cancel
 };
 
@@ -237,6 +245,7 @@ struct Smooth_settings
   long long iterations = 1;
   lapmesh::Laplacian laplacian = lapmesh::Laplacian::cotangent;
   lapmesh::Vertex_area area = lapmesh::Vertex_area::barycentric;
+  double mollification = lapmesh::default_mollification_factor;  ///< intrinsic Delaunay only
   bool fixed_operator = false;       ///< keep the input's operator for every iteration
   bool restore_volume = false;       ///< rescale to the input's enclosed volume after each step
   bool restore_area = false;         ///< rescale to the input's surface area after each step

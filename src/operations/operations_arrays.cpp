@@ -1,5 +1,6 @@
 // The array front ends' operations (arrays.h).
 #include "arrays.h"
+#include "numbering.h"
 
 #include <lapmesh/io.h>
 #include <lapmesh/laplacian.h>
@@ -10,8 +11,11 @@ namespace lapmesh_ops {
 Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings)
 {
   namespace LP = lapmesh::parameters;
-  lapmesh::Laplacian_pencil pencil = lapmesh::laplacian_pencil<CGAL::Parallel_if_available_tag>(
-    mesh, LP::vertex_area(settings.area, LP::laplacian(settings.laplacian)));
+  lapmesh::Laplacian_pencil pencil = with_numbering(mesh, [&](const auto& np) {
+    return lapmesh::laplacian_pencil<CGAL::Parallel_if_available_tag>(
+      mesh, LP::mollification_factor(settings.mollification,
+                                     LP::vertex_area(settings.area, LP::laplacian(settings.laplacian, np))));
+  });
   Csr_laplacian out;
   out.stiffness = pencil.stiffness;  // the assembly's pattern is symmetric: only the storage order changes
   out.stiffness.makeCompressed();

@@ -1,5 +1,6 @@
 // The smoothing operations: Laplacian smoothing, noise and the denoising study.
 #include "operations.h"
+#include "numbering.h"
 
 #include <lapmesh/denoising.h>
 #include <lapmesh/laplacian_smoothing.h>
@@ -55,17 +56,27 @@ void check(const Smooth_settings& s, const Smoothing_limits& limits)
                                                    std::to_string(limits.max_iterations) + ")");
 }
 
-Smooth_result smooth(Mesh& mesh, const Smooth_settings& s, const Smoothing_limits& limits)
+namespace {
+template <typename Numbering>
+Smooth_result smooth_numbered(Mesh& mesh, const Smooth_settings& s, const Numbering& numbering)
 {
-  check(s, limits);
   namespace LP = lapmesh::parameters;
-  const auto base = LP::fix_boundary(s.fix_boundary, LP::vertex_area(s.area, LP::laplacian(s.laplacian)));
+  const auto base = LP::fix_boundary(
+    s.fix_boundary,
+    LP::mollification_factor(s.mollification, LP::vertex_area(s.area, LP::laplacian(s.laplacian, numbering))));
   Smooth_result out;
   // The explicit scheme's bound is computed once, by explicit_stability_bound() on the input's
   // free vertices, and serves the automatic step, the bound unit, the warning and the report
   // (the smoother's own report may hold a cheaper Gershgorin bound instead).
   const bool explicit_scheme = s.scheme == lapmesh::Smoothing_scheme::explicit_euler;
   if(explicit_scheme) out.stability_bound = lapmesh::explicit_stability_bound(mesh, base);
+  // With no free vertex the bound is infinite and a step relative to it undefined.
+  if(explicit_scheme && std::isinf(out.stability_bound) &&
+     (s.lambda.automatic || s.lambda.unit == lapmesh::Time_step_unit::stability_bound))
+    throw lapmesh::Parameter_error("fix_boundary",
+                                   "no vertex is free to move (every vertex is on the fixed boundary), so the "
+                                   "explicit stability bound is undefined",
+                                   "false");
   if(s.lambda.automatic)
     out.lambda = explicit_scheme ? lapmesh::automatic_explicit_time_step(out.stability_bound)
                                  : lapmesh::automatic_time_step(mesh, s.scheme, base);
@@ -100,6 +111,13 @@ Smooth_result smooth(Mesh& mesh, const Smooth_settings& s, const Smoothing_limit
                             {{"lambda", "auto"}, {"lambda_unit", "bound"}}});
   return out;
 }
+} // namespace
+
+Smooth_result smooth(Mesh& mesh, const Smooth_settings& s, const Smoothing_limits& limits)
+{
+  check(s, limits);
+  return with_numbering(mesh, [&](const auto& numbering) { return smooth_numbered(mesh, s, numbering); });
+}
 
 void check(const Noise_settings& s)
 {
@@ -111,7 +129,10 @@ double add_noise(Mesh& mesh, const Noise_settings& s)
 {
   check(s);
   namespace LP = lapmesh::parameters;
-  return lapmesh::add_noise(mesh, s.level, LP::noise_seed(s.seed, LP::noise_direction(s.direction, LP::noise_scale(s.scale))));
+  return with_numbering(mesh, [&](const auto& np) {
+    return lapmesh::add_noise(mesh, s.level,
+                              LP::noise_seed(s.seed, LP::noise_direction(s.direction, LP::noise_scale(s.scale, np))));
+  });
 }
 
 void check(const lapmesh::Denoising_study_settings& s)
@@ -127,7 +148,7 @@ void check(const lapmesh::Denoising_study_settings& s)
 lapmesh::Denoising_study denoise_study(const Mesh& mesh, const lapmesh::Denoising_study_settings& settings)
 {
   check(settings);
-  return lapmesh::run_denoising_study(mesh, settings);
+  return with_numbering(mesh, [&](const auto& np) { return lapmesh::run_denoising_study(mesh, settings, np); });
 }
 
 std::vector<Study_summary_line> summarize(const lapmesh::Denoising_study& study,

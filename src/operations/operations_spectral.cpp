@@ -1,5 +1,6 @@
 // The spectral operations: eigenpairs, the basis cache, reconstruction.
 #include "operations.h"
+#include "numbering.h"
 
 #include <lapmesh/io.h>
 #include <lapmesh/spectral_reconstruction.h>
@@ -22,16 +23,20 @@ void check_k(long long k, long long n, const char* parameter)
 std::shared_ptr<const lapmesh::Spectral_basis> spectral_basis(const Mesh& mesh, const Spectral_settings& settings)
 {
   namespace LP = lapmesh::parameters;
-  check_k(settings.k, (long long)num_vertices(mesh), "k");
-  return std::make_shared<const lapmesh::Spectral_basis>(lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
-    mesh, Eigen::Index(settings.k),
-    LP::spectral_progress(settings.progress, LP::vertex_area(settings.area, LP::laplacian(settings.laplacian)))));
+  check_k(settings.k, (long long)vertex_count(mesh), "k");
+  return with_numbering(mesh, [&](const auto& np) {
+    return std::make_shared<const lapmesh::Spectral_basis>(lapmesh::Spectral_basis::compute<CGAL::Parallel_if_available_tag>(
+      mesh, Eigen::Index(settings.k),
+      LP::spectral_progress(settings.progress,
+                            LP::mollification_factor(settings.mollification,
+                                                     LP::vertex_area(settings.area, LP::laplacian(settings.laplacian, np))))));
+  });
 }
 
 void check_basis_fits(const lapmesh::Spectral_basis& basis, const Mesh& mesh, std::optional<lapmesh::Laplacian> laplacian,
                       std::optional<lapmesh::Vertex_area> area)
 {
-  const long long n = (long long)num_vertices(mesh);
+  const long long n = (long long)vertex_count(mesh);
   if(basis.num_vertices() != n)
     throw lapmesh::Parameter_error("basis", "the basis has " + std::to_string(basis.num_vertices()) +
                                               " vertices, the mesh has " + std::to_string(n));
@@ -45,8 +50,10 @@ void check_basis_fits(const lapmesh::Spectral_basis& basis, const Mesh& mesh, st
                                              lapmesh::to_string(*area) + " one asked for");
   // The mass of the mesh must be the basis's: catches a basis of another mesh with as many vertices.
   namespace LP = lapmesh::parameters;
-  const Eigen::VectorXd mass =
-    lapmesh::laplacian_pencil(mesh, LP::vertex_area(basis.vertex_area(), LP::laplacian(basis.laplacian()))).mass;
+  const Eigen::VectorXd mass = with_numbering(mesh, [&](const auto& np) {
+    return lapmesh::laplacian_pencil(mesh, LP::vertex_area(basis.vertex_area(), LP::laplacian(basis.laplacian(), np)))
+      .mass;
+  });
   if((mass - basis.mass()).cwiseAbs().maxCoeff() > 1e-9 * mass.cwiseAbs().maxCoeff())
     throw lapmesh::Parameter_error("basis", "the basis does not belong to this mesh (different vertex masses)");
 }
@@ -112,7 +119,7 @@ namespace {
 Reconstruction reconstruct_with(const Mesh& mesh, const Reconstruct_settings& settings,
                                 std::shared_ptr<const lapmesh::Spectral_basis> basis, bool verify_basis)
 {
-  const long long n = (long long)num_vertices(mesh);
+  const long long n = (long long)vertex_count(mesh);
   check_k(settings.k, n, "k");
   const long long k = settings.k;
   if(basis) {
@@ -129,6 +136,7 @@ Reconstruction reconstruct_with(const Mesh& mesh, const Reconstruct_settings& se
     s.k = std::max(k, settings.basis_size);
     s.laplacian = settings.laplacian;
     s.area = settings.area;
+    s.mollification = settings.mollification;
     s.progress = settings.progress;
     basis = spectral_basis(mesh, s);
   }

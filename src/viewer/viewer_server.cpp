@@ -351,8 +351,8 @@ struct Server::Impl
     } catch(const std::exception& e) {
       throw Http_error(422, src.label + ": " + e.what());
     }
-    if((long long)num_vertices(mesh) > options.max_vertices)
-      throw Http_error(422, src.label + ": " + std::to_string(num_vertices(mesh)) + " vertices, more than the limit " +
+    if((long long)lapmesh_ops::vertex_count(mesh) > options.max_vertices)
+      throw Http_error(422, src.label + ": " + std::to_string(lapmesh_ops::vertex_count(mesh)) + " vertices, more than the limit " +
                               std::to_string(options.max_vertices));
     s.original = mesh;
     s.current = std::move(mesh);
@@ -428,7 +428,7 @@ struct Server::Impl
 
   json op_reconstruct(Mesh_state& s, Params& p)
   {
-    const long long n = (long long)num_vertices(s.current);
+    const long long n = (long long)lapmesh_ops::vertex_count(s.current);
     lapmesh_ops::Reconstruct_settings settings;
     settings.k = p.integer("k", std::nullopt, 1, std::min<long long>(n, options.max_k));
     settings.laplacian = p.option("laplacian", settings.laplacian);
@@ -517,7 +517,7 @@ struct Server::Impl
               {"kind", s.source.kind == Mesh_source::Kind::file ? "file" : "builtin"}};
     if(s.loaded && s.lock.try_read()) {
       Busy_guard l(s.lock, false);
-      j["vertices"] = num_vertices(s.current);
+      j["vertices"] = lapmesh_ops::vertex_count(s.current);
       j["faces"] = num_faces(s.current);
     }
     return j;
@@ -906,7 +906,7 @@ struct Server::Impl
         out["request_id"] = request_id;
         out["version"] = s.version;
         out["geometry"] = s.geometry;
-        out["vertices"] = num_vertices(s.current);
+        out["vertices"] = lapmesh_ops::vertex_count(s.current);
         out["scalars"] = json::array();
         for(const auto& kv : s.scalars) out["scalars"].push_back(kv.first);
         send_json(res, out);

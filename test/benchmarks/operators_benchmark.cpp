@@ -80,7 +80,7 @@ void BM_cotangent_vs_intrinsic(benchmark::State& state)
     const auto e = lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values());
     lapmesh::internal::Intrinsic_delaunay_stats stats;
     lapmesh::internal::intrinsic_delaunay_triangulation(e.topology, e.positions,
-                                                        lapmesh::internal::default_mollification_factor, &stats);
+                                                        lapmesh::default_mollification_factor, &stats);
     state.counters["flips"] = double(stats.flips);
   }
   state.counters["vertices"] = double(num_vertices(m));

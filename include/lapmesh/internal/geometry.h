@@ -70,7 +70,8 @@ inline void lumped_corner_areas(Vertex_area area, double face_area, const double
 inline void throw_degenerate_face(Index f)
 {
   throw Mesh_error("face " + std::to_string(f) +
-                     " has zero area (its angles and cotangent weights are undefined)",
+                     " has zero area (its angles and cotangent weights are undefined; the "
+                     "intrinsic-delaunay Laplacian takes it)",
                    Mesh_error::Element::face, f);
 }
 

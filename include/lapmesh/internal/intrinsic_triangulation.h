@@ -22,6 +22,7 @@
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/SparseCore>
 
 #include <algorithm>
@@ -54,29 +55,58 @@ struct Intrinsic_delaunay_stats
 class Intrinsic_triangulation
 {
 public:
-  /// The triangulation of `t` with the edge lengths of the positions `P`.
+  /// The triangulation of `t` with the edge lengths of the positions `P`: the faces of `t`
+  /// themselves on a closed manifold mesh, else its tufted cover (every face twice, front
+  /// and back, the copies glued so that every edge has exactly two faces: a boundary edge
+  /// joins a face's two sides, the faces around a non-manifold edge are glued in their
+  /// angular order around it). The cover is closed, so every edge can be flipped; operators
+  /// of the cover count every face twice (sheets() == 2).
   template <typename Positions>
   Intrinsic_triangulation(const Mesh_topology& t, const Positions& P)
-    : m_num_vertices(t.num_vertices), m_tri(t.triangles), m_twin(t.triangles.size(), -1),
-      m_length(t.triangles.size())
+    : m_num_vertices(t.num_vertices), m_sheets(t.manifold && t.num_boundary_edges == 0 ? 1 : 2)
   {
-    const std::size_t nh = m_tri.size();
-    for(std::size_t h = 0; h < nh; ++h) {
+    const std::size_t front = t.triangles.size();
+    m_tri.resize(m_sheets * front);
+    std::copy(t.triangles.begin(), t.triangles.end(), m_tri.begin());
+    if(m_sheets == 2)
+      for(std::size_t f = 0; f < front / 3; ++f) {  // the back of (a, b, c) is (a, c, b)
+        m_tri[front + 3 * f] = t.triangles[3 * f];
+        m_tri[front + 3 * f + 1] = t.triangles[3 * f + 2];
+        m_tri[front + 3 * f + 2] = t.triangles[3 * f + 1];
+      }
+    m_twin.assign(m_tri.size(), -1);
+    m_length.resize(m_tri.size());
+    for(std::size_t h = 0; h < m_tri.size(); ++h) {
       const Index a = m_tri[h], b = m_tri[next_of(Index(h))];
       m_length[h] = (P.row(a) - P.row(b)).norm();
     }
+    auto glue = [&](Index h, Index g) {
+      m_twin[h] = g;
+      m_twin[g] = h;
+    };
     // Twins through the topology's slots: slot (i, j) knows the corners opposite i->j and j->i.
+    std::vector<char> fan(m_sheets == 2 && !t.manifold ? t.inner.size() : 0, 0);
+    for(Index s : t.fan_slot) fan[s] = 1;
     for(Index i = 0; i < t.num_vertices; ++i)
       for(Index s = t.outer[i]; s < t.outer[i + 1]; ++s) {
         const auto& c = t.slot_corners[s];
-        if(c[0] < 0 || c[1] < 0) continue;
-        const Index h = halfedge_opposite(c[0]), g = halfedge_opposite(c[1]);
-        m_twin[h] = g;
-        m_twin[g] = h;
+        if(t.inner[s] <= i || (!fan.empty() && fan[s])) continue;  // each edge once; fans below
+        if(c[0] >= 0 && c[1] >= 0) {
+          const Index h = halfedge_opposite(c[0]), g = halfedge_opposite(c[1]);
+          glue(h, g);
+          if(m_sheets == 2) glue(back_of(h), back_of(g));
+        } else if(m_sheets == 2) {  // a boundary edge: the face's front meets its back
+          const Index h = halfedge_opposite(c[0] >= 0 ? c[0] : c[1]);
+          glue(h, back_of(h));
+        }
       }
+    for(std::size_t e = 0; e + 1 < t.fan_begin.size(); ++e)
+      glue_fan(P, &t.fan_corners[t.fan_begin[e]], &t.fan_corners[t.fan_begin[e + 1]]);
   }
 
   Index num_vertices() const { return m_num_vertices; }
+  /// 1 for the faces of the mesh, 2 for its tufted cover (each face twice).
+  int sheets() const { return m_sheets; }
   Index num_faces() const { return Index(m_tri.size() / 3); }
   const std::vector<Index>& triangles() const { return m_tri; }
   const std::vector<Index>& twins() const { return m_twin; }
@@ -150,8 +180,10 @@ public:
       queue.pop_back();
       queued[h] = 0;
       const Index g = m_twin[h];
-      if(g < 0 || h / 3 == g / 3 || m_tri[prev_of(h)] == m_tri[prev_of(g)] || cotangent_sum(h) >= -tolerance)
-        continue;  // a boundary edge, a face glued to itself, or a quad whose diagonal would be a loop
+      // A boundary edge, or a face glued to itself. A new diagonal may be a loop (both
+      // triangles opposite the same vertex, as across a boundary edge of the tufted cover):
+      // it is a valid intrinsic edge that adds nothing to L x.
+      if(g < 0 || h / 3 == g / 3 || cotangent_sum(h) >= -tolerance) continue;
       flip(h);
       ++stats.flips;
       // The four outer edges of the new pair of triangles may have become non-Delaunay.
@@ -184,6 +216,48 @@ public:
   static Index corner_opposite(Index h) { return prev_of(h); }
 
 private:
+  /// The halfedge of the back copy of a front face that runs the other way along h's edge.
+  Index back_of(Index h) const
+  {
+    const Index front = Index(m_tri.size() / 2);
+    return front + 3 * (h / 3) + (2 - h % 3);
+  }
+
+  /// Glues the faces around one non-manifold edge u-v (u < v; the corners [first, last)
+  /// are opposite its halfedges): sorted by the angle of their third vertex around the
+  /// edge, the side of each face that looks towards the next one meets that one's side
+  /// that looks back. The copy of a face that runs u->v is its side towards increasing angle.
+  template <typename Positions>
+  void glue_fan(const Positions& P, const Index* first, const Index* last)
+  {
+    const Index h0 = halfedge_opposite(*first);
+    Index u = m_tri[h0], v = m_tri[next_of(h0)];
+    if(u > v) std::swap(u, v);
+    const Eigen::Vector3d pu = P.row(u), axis = (Eigen::Vector3d(P.row(v)) - pu).normalized();
+    struct Side
+    {
+      double angle;
+      Index up, down;  // the halfedges of the face's copies running u->v and v->u
+    };
+    std::vector<Side> sides;
+    Eigen::Vector3d x_axis = Eigen::Vector3d::Zero();
+    for(const Index* c = first; c != last; ++c) {
+      const Index h = halfedge_opposite(*c), b = back_of(h);
+      Eigen::Vector3d r = Eigen::Vector3d(P.row(m_tri[*c])) - pu;
+      r -= r.dot(axis) * axis;
+      if(x_axis.squaredNorm() == 0 && r.squaredNorm() > 0) x_axis = r.normalized();
+      const Eigen::Vector3d y_axis = axis.cross(x_axis);
+      const double angle = std::atan2(r.dot(y_axis), r.dot(x_axis));
+      sides.push_back(m_tri[h] == u ? Side{angle, h, b} : Side{angle, b, h});
+    }
+    std::stable_sort(sides.begin(), sides.end(), [](const Side& a, const Side& b) { return a.angle < b.angle; });
+    for(std::size_t k = 0; k < sides.size(); ++k) {
+      const Index up = sides[k].up, down = sides[(k + 1) % sides.size()].down;
+      m_twin[up] = down;
+      m_twin[down] = up;
+    }
+  }
+
   /// Replaces the edge of h (a->b in face (a, b, c), twin b->a in face (b, a, d)) by c-d:
   /// the faces become (d, b, c) and (c, a, d), in the same orientation.
   void flip(Index h)
@@ -201,10 +275,17 @@ private:
     const double dx = (l_ab * l_ab + l_ad * l_ad - l_db * l_db) / (2 * l_ab);
     const double dy = -2 * triangle_area_from_lengths(l_ab, l_db, l_ad) / l_ab;
     const double l_cd = std::hypot(cx - dx, cy - dy);
-    const Index t_bc = m_twin[hb], t_ca = m_twin[hc], t_ad = m_twin[ga], t_db = m_twin[gd];
-
     // f0 = (d, b, c): halfedges d->b, b->c, c->d; f1 = (c, a, d): c->a, a->d, d->c.
     const Index n0 = 3 * f0, n1 = 3 * f1;
+    // Where the four outer halfedges go. An outer edge may be glued to another outer edge of
+    // the same quad (a face of the tufted cover whose two boundary edges meet at a vertex):
+    // its twin moves with it.
+    auto moved = [&](Index old) {
+      return old == hb ? n0 + 1 : old == hc ? n1 : old == ga ? n1 + 1 : old == gd ? n0 : old;
+    };
+    const Index t_bc = moved(m_twin[hb]), t_ca = moved(m_twin[hc]), t_ad = moved(m_twin[ga]),
+                t_db = moved(m_twin[gd]);
+
     m_tri[n0] = d; m_tri[n0 + 1] = b; m_tri[n0 + 2] = c;
     m_tri[n1] = c; m_tri[n1 + 1] = a; m_tri[n1 + 2] = d;
     auto set = [&](Index half, double length, Index twin) {
@@ -222,6 +303,7 @@ private:
   }
 
   Index m_num_vertices;
+  int m_sheets;
   std::vector<Index> m_tri;      // 3 vertices per face
   std::vector<Index> m_twin;     // per halfedge, -1 on the boundary
   std::vector<double> m_length;  // per halfedge (twins agree)
@@ -241,12 +323,13 @@ inline Intrinsic_triangulation intrinsic_delaunay_triangulation(const Mesh_topol
   return it;
 }
 
-/// The corner cotangents and corner areas of an intrinsic triangulation, in its corner order
-/// (the mesh's own while no edge was flipped).
+/// The corner cotangents and corner areas of the first `faces` faces of an intrinsic
+/// triangulation (all by default), in its corner order: the mesh's own while no edge was
+/// flipped, the front sheet first in a tufted cover.
 inline void intrinsic_corner_geometry(const Intrinsic_triangulation& it, Vertex_area area, bool parallel,
-                                      Corner_geometry& g)
+                                      Corner_geometry& g, Index faces = -1)
 {
-  const Index m = it.num_faces();
+  const Index m = faces < 0 ? it.num_faces() : faces;
   g.cot.resize(3 * std::size_t(m));
   g.corner_area.resize(3 * std::size_t(m));
   const std::vector<double>& len = it.lengths();
@@ -261,9 +344,9 @@ inline void intrinsic_corner_geometry(const Intrinsic_triangulation& it, Vertex_
   });
 }
 
-/// The cotangent stiffness and the lumped mass of an intrinsic triangulation. The pattern is
-/// that of its edges, which after flips may join vertices that share no mesh edge; two
-/// intrinsic edges between the same vertices add up.
+/// The cotangent stiffness and the lumped mass of an intrinsic triangulation, per sheet (a
+/// tufted cover's are halved). The pattern is that of its edges, which after flips may join
+/// vertices that share no mesh edge; two intrinsic edges between the same vertices add up.
 inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_area area,
                                       Eigen::SparseMatrix<double>& stiffness, Eigen::VectorXd& mass)
 {
@@ -275,16 +358,17 @@ inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_
   mass = Eigen::VectorXd::Zero(n);
   Corner_geometry g;
   intrinsic_corner_geometry(it, area, false, g);
+  const double per_sheet = 1.0 / it.sheets();
   for(Index f = 0; f < m; ++f) {
     const double* cot = &g.cot[3 * std::size_t(f)];
     for(Index a = 0; a < 3; ++a) {
       const Index c = 3 * f + a;
-      mass[tri[c]] += g.corner_area[c];
+      mass[tri[c]] += per_sheet * g.corner_area[c];
       // The halfedge opposite corner a gets half of its cotangent.
       const Index h = Intrinsic_triangulation::halfedge_opposite(c);
       const Index i = tri[h], j = tri[Intrinsic_triangulation::next_of(h)];
       if(i == j) continue;  // a loop edge joins a vertex to itself: no term in L x
-      const double w = 0.5 * cot[a];
+      const double w = 0.5 * per_sheet * cot[a];
       entries.emplace_back(i, j, w);
       entries.emplace_back(j, i, w);
       diagonal[i] -= w;
@@ -297,7 +381,8 @@ inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_
   stiffness.makeCompressed();
 }
 
-/// The sum of the corner angles at each vertex (the cone angle, which flips do not change).
+/// The sum of the corner angles at each vertex (the cone angle, which flips do not change),
+/// per sheet.
 inline Eigen::VectorXd vertex_angle_sums(const Intrinsic_triangulation& it)
 {
   Eigen::VectorXd sums = Eigen::VectorXd::Zero(it.num_vertices());
@@ -320,7 +405,7 @@ inline Eigen::VectorXd vertex_angle_sums(const Intrinsic_triangulation& it)
     angle[largest] = M_PI - angle[(largest + 1) % 3] - angle[(largest + 2) % 3];
     for(int a = 0; a < 3; ++a) sums[it.triangles()[3 * f + a]] += angle[a];
   }
-  return sums;
+  return sums / it.sheets();
 }
 
 } // namespace internal

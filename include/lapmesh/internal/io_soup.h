@@ -141,24 +141,18 @@ inline bool triangulate_polygon(const std::vector<std::size_t>& poly,
 }
 
 /// Flips faces so that neighbours agree in orientation (breadth-first over each connected
-/// component; the first face of a component keeps its orientation). Returns the number of
-/// flipped faces; throws Mesh_error for a non-manifold edge or a non-orientable surface.
-inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& tris,
-                                       const std::vector<std::size_t>& source_face)
+/// component; the first face of a component keeps its orientation), through manifold edges
+/// only. Returns the number of flipped faces; counts the non-manifold edges and notes a
+/// surface that no orientation makes consistent.
+inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& tris, Soup_report& report)
 {
   const std::size_t m = tris.size();
   std::unordered_map<std::uint64_t, std::vector<std::size_t>> edge_faces;
   edge_faces.reserve(3 * m);
   auto key = [](std::size_t a, std::size_t b) { return std::uint64_t(std::min(a, b)) << 32 | std::uint64_t(std::max(a, b)); };
   for(std::size_t f = 0; f < m; ++f)
-    for(int a = 0; a < 3; ++a) {
-      auto& faces = edge_faces[key(tris[f][a], tris[f][(a + 1) % 3])];
-      faces.push_back(f);
-      if(faces.size() > 2)
-        throw Mesh_error("face " + std::to_string(source_face[f]) + ": edge (" + std::to_string(tris[f][a]) + ", " +
-                           std::to_string(tris[f][(a + 1) % 3]) + ") has more than two faces (non-manifold)",
-                         Mesh_error::Element::face, std::int64_t(source_face[f]));
-    }
+    for(int a = 0; a < 3; ++a) edge_faces[key(tris[f][a], tris[f][(a + 1) % 3])].push_back(f);
+  for(const auto& entry : edge_faces) report.non_manifold_edges += entry.second.size() > 2;
   auto has_directed = [](const std::array<std::size_t, 3>& t, std::size_t a, std::size_t b) {
     return (t[0] == a && t[1] == b) || (t[1] == a && t[2] == b) || (t[2] == a && t[0] == b);
   };
@@ -174,23 +168,20 @@ inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& 
       queue.pop();
       for(int a = 0; a < 3; ++a) {
         const std::size_t p = tris[f][a], q = tris[f][(a + 1) % 3];
-        for(std::size_t g : edge_faces[key(p, q)]) {
-          if(g == f) continue;
-          const bool agrees = has_directed(tris[g], q, p);
-          if(state[g]) {
-            if(!agrees)
-              throw Mesh_error("face " + std::to_string(source_face[g]) +
-                                 ": the surface is not orientable (no consistent face orientation exists)",
-                               Mesh_error::Element::face, std::int64_t(source_face[g]));
-            continue;
-          }
-          if(!agrees) {
-            std::swap(tris[g][1], tris[g][2]);
-            ++flipped;
-          }
-          state[g] = 1;
-          queue.push(g);
+        const auto& faces = edge_faces[key(p, q)];
+        if(faces.size() != 2) continue;  // a boundary or a non-manifold edge
+        const std::size_t g = faces[0] == f ? faces[1] : faces[0];
+        const bool agrees = has_directed(tris[g], q, p);
+        if(state[g]) {
+          if(!agrees) report.non_orientable = true;
+          continue;
         }
+        if(!agrees) {
+          std::swap(tris[g][1], tris[g][2]);
+          ++flipped;
+        }
+        state[g] = 1;
+        queue.push(g);
       }
     }
   }
@@ -200,12 +191,14 @@ inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& 
 } // namespace internal
 
 
-/// Validates a soup and turns it into consistently oriented triangles over the same vertices.
-/// Throws Mesh_error naming the vertex or face (input face index) for: a non-finite
-/// coordinate, an empty mesh, a face with fewer than 3 or repeated vertices, a polygon that
-/// cannot be triangulated, a zero-area face, a face with coordinates out of the
-/// representable range (edges longer than 1e145 or all shorter than 1e-145), a vertex in no
-/// face, a non-manifold edge or a non-orientable surface.
+/// Validates a soup and turns it into triangles over the same vertices, oriented
+/// consistently where the surface allows it. Throws Mesh_error naming the vertex or face
+/// (input face index) for: a non-finite coordinate, a mesh with no face, a face with fewer
+/// than 3 vertices or a vertex index out of range, a polygon that cannot be triangulated, a
+/// face with coordinates out of the representable range (edges longer than 1e145 or all
+/// shorter than 1e-145). What real meshes have and lapmesh processes is counted in the
+/// report instead: faces that use a vertex twice (left out; an error when no face is
+/// left), zero-area faces, vertices in no face, non-manifold edges, a non-orientable surface.
 inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_soup& soup, Soup_report* report = nullptr)
 {
   using lapmesh::internal::Face_defect;
@@ -222,7 +215,6 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
                      " faces, beyond lapmesh's limit of 2^31 - 1 vertices and 715827882 faces");
 
   std::vector<std::array<std::size_t, 3>> tris;
-  std::vector<std::size_t> source;
   tris.reserve(soup.polygons.size());
   Soup_report rep;
   auto squared = [](const std::array<double, 3>& a, const std::array<double, 3>& b) {
@@ -238,7 +230,10 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
       if(idx >= n) fail("has vertex index " + std::to_string(idx) + " out of range [0, " + std::to_string(n) + ")");
     std::vector<std::size_t> sorted = poly;
     std::sort(sorted.begin(), sorted.end());
-    if(std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("uses the same vertex twice");
+    if(std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+      ++rep.dropped_faces;
+      continue;
+    }
     const std::size_t before = tris.size();
     if(poly.size() == 3) {
       tris.push_back({poly[0], poly[1], poly[2]});
@@ -252,35 +247,35 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
         fail("is a polygon with " + std::to_string(poly.size()) + " vertices that cannot be triangulated");
     }
     for(std::size_t k = before; k < tris.size(); ++k) {
-      source.push_back(f);
       const auto& t = tris[k];
       const Face_defect d =
         lapmesh::internal::face_defect(soup.points[t[0]].data(), soup.points[t[1]].data(), soup.points[t[2]].data());
-      if(d == Face_defect::zero_area) fail("has zero area");
-      if(d != Face_defect::none)
+      if(d == Face_defect::zero_area)
+        ++rep.zero_area_faces;
+      else if(d != Face_defect::none)
         throw Mesh_error(lapmesh::internal::out_of_range_message(std::int64_t(f), d), Mesh_error::Element::face,
                          std::int64_t(f));
     }
   }
-  std::vector<char> used(n, 0);
+  if(tris.empty())
+    throw Mesh_error("the mesh has no faces (its " + std::to_string(rep.dropped_faces) +
+                     " face(s) each use a vertex twice)");
+  // Vertices in no face are counted; the topology check below numbers the others densely.
+  std::vector<lapmesh::internal::Index> dense(n, -1);
   for(const auto& t : tris)
-    for(std::size_t v : t) used[v] = 1;
+    for(std::size_t v : t) dense[v] = 0;
+  lapmesh::internal::Index used = 0;
   for(std::size_t i = 0; i < n; ++i)
-    if(!used[i])
-      throw Mesh_error("vertex " + std::to_string(i) + " is in no face", Mesh_error::Element::vertex, std::int64_t(i));
+    if(dense[i] == 0) dense[i] = used++;
+  rep.isolated_vertices = n - std::size_t(used);
 
-  // Fast path: lapmesh's topology check accepts consistently oriented manifold meshes.
+  // Fast path: lapmesh's topology check finds consistently oriented manifold edges.
   std::vector<lapmesh::internal::Index> flat;
   flat.reserve(3 * tris.size());
   for(const auto& t : tris)
-    for(std::size_t v : t) flat.push_back(lapmesh::internal::Index(v));
-  try {
-    lapmesh::internal::build_topology(lapmesh::internal::Index(n), std::move(flat));
-  } catch(const Mesh_error&) {
-    // Mixed orientations can be repaired without touching the vertices; a non-manifold edge
-    // or a non-orientable surface cannot, and orient_consistently() says which face.
-    rep.flipped_faces = internal::orient_consistently(tris, source);
-  }
+    for(std::size_t v : t) flat.push_back(dense[v]);
+  if(!lapmesh::internal::build_topology(used, std::move(flat)).manifold)
+    rep.flipped_faces = internal::orient_consistently(tris, rep);
   if(report) *report = rep;
   return tris;
 }

@@ -13,40 +13,41 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <cmath>
 #include <string>
 
 namespace lapmesh {
 namespace internal {
-
-/// The default mollification margin of the intrinsic Delaunay Laplacian, in mean edge lengths.
-constexpr double default_mollification_factor = 1e-5;
 
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
 /// matrix with t's pattern (repeated assembly while smoothing) only the values are written;
 /// the intrinsic Delaunay Laplacian has a pattern of its own (its flipped edges), rebuilt
 /// each time.
 inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
-                            Vertex_area area, bool parallel, Laplacian_pencil& out)
+                            Vertex_area area, bool parallel, Laplacian_pencil& out,
+                            double mollification = default_mollification_factor)
 {
   if(laplacian == Laplacian::intrinsic_delaunay) {
     Intrinsic_delaunay_stats stats;
-    const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, default_mollification_factor, &stats);
-    if(stats.flips > 0) {
+    const Intrinsic_triangulation it = intrinsic_delaunay_triangulation(t, P, mollification, &stats);
+    if(stats.flips > 0 || !t.manifold) {
       assemble_intrinsic_pencil(it, area, out.stiffness, out.mass);
       return;
     }
-    // No flip: the triangles are the mesh's, so are the pattern and the assembly; only the
+    // No flip on a manifold mesh: the triangles are the mesh's (the front sheet of a tufted
+    // cover, whose back sheet mirrors it), so are the pattern and the assembly; only the
     // cotangents and areas come from the (mollified) lengths.
     if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
        !out.stiffness.isCompressed() ||
        !std::equal(t.inner.begin(), t.inner.end(), out.stiffness.innerIndexPtr()))
       make_pattern_matrix(t, out.stiffness);
     Corner_geometry g;
-    intrinsic_corner_geometry(it, area, parallel, g);
+    intrinsic_corner_geometry(it, area, parallel, g, t.num_faces);
     fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
     out.mass = gather_corner_sums(t, g.corner_area, parallel);
     return;
   }
+  require_manifold(t, to_string(laplacian));
   if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
      !out.stiffness.isCompressed())
     make_pattern_matrix(t, out.stiffness);
@@ -93,6 +94,17 @@ Laplacian choose_laplacian(const NamedParameters& np)
 {
   return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::laplacian),
                                             Laplacian::cotangent);
+}
+/// The mollification factor of the named parameters; Parameter_error unless finite and >= 0.
+template <typename NamedParameters>
+double choose_mollification(const NamedParameters& np)
+{
+  const double factor = CGAL::parameters::choose_parameter(
+    CGAL::parameters::get_parameter(np, internal_np::mollification_factor), default_mollification_factor);
+  if(!(factor >= 0) || !std::isfinite(factor))
+    throw Parameter_error("mollification_factor", "must be a finite number >= 0 (got " + std::to_string(factor) + ")",
+                          "1e-5");
+  return factor;
 }
 template <typename NamedParameters>
 Vertex_area choose_vertex_area(const NamedParameters& np)

@@ -1,10 +1,16 @@
 // Internal: reads a CGAL FaceGraph once into lapmesh's flat arrays.
 //
 // Vertex numbering (the row order of every matrix and vector lapmesh returns): the values of
-// the `vertex_index_map` named parameter when one is given (it must be a bijection onto
-// 0..n-1), otherwise the position of the vertex in `vertices(tm)`. For a Surface_mesh without
-// removed elements this is `v.idx()`; with removed, not yet collected elements it is the
-// compacted order, so garbage never shows up as rows.
+// the `vertex_index_map` named parameter when one is given, otherwise the position of the
+// vertex in `vertices(tm)`. For a Surface_mesh without removed elements this is `v.idx()`;
+// with removed, not yet collected elements it is the compacted order, so garbage never shows
+// up as rows. A given map must reach every index of 0..n-1; when it gives several vertices
+// the same index it welds them into one row (they must share their position): this is how a
+// mesh that a FaceGraph cannot hold as it is (non-manifold edges and vertices) is processed,
+// its faces stored apart and welded back by their input vertex numbers.
+//
+// The computation runs on the rows that are in some face (the topology's vertices); rows in
+// no face get a documented value in each result (NaN, zero, or their input position).
 #ifndef LAPMESH_INTERNAL_MESH_EXTRACTION_H
 #define LAPMESH_INTERNAL_MESH_EXTRACTION_H
 
@@ -17,6 +23,8 @@
 #include <CGAL/boost/graph/iterator.h>
 #include <CGAL/boost/graph/named_params_helper.h>
 #include <CGAL/number_utils.h>
+
+#include <Eigen/SparseCore>
 
 #include <CGAL/boost/graph/properties.h>
 
@@ -34,18 +42,72 @@ template <typename TriangleMesh>
 struct Extracted_arrays
 {
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
-  Positions positions;
+  Positions positions;                      ///< one row per index of the numbering
   std::vector<Index> triangles;             ///< 3 vertex indices per face, in face order
-  std::vector<vertex_descriptor> vertices;  ///< vertex of each index
+  std::vector<vertex_descriptor> vertices;  ///< the first vertex of each index
+  /// Every vertex with its index, in `vertices(tm)` order (welded vertices share one).
+  std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
 };
 
+/// A mesh ready for computation: the topology and positions of the rows that are in a face.
 template <typename TriangleMesh>
 struct Extracted_mesh
 {
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
   Mesh_topology topology;
-  Positions positions;
-  std::vector<vertex_descriptor> vertices;  ///< vertex of each index
+  Positions positions;                      ///< per topology vertex
+  std::vector<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
+  Index num_rows = 0;                       ///< rows of the numbering (results' size)
+  /// The row of each topology vertex; empty when every row is in a face (the identity).
+  std::vector<Index> row;
+  /// Every vertex with its row, in `vertices(tm)` order.
+  std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
+
+  Index num_rows_in_no_face() const { return row.empty() ? 0 : num_rows - Index(row.size()); }
+
+  /// Calls f(vertex, topology vertex) for every vertex in a face (welded copies included).
+  template <typename F>
+  void for_each_vertex(F f) const
+  {
+    if(row.empty()) {
+      for(const auto& [v, r] : vertex_rows) f(v, r);
+      return;
+    }
+    std::vector<Index> of_row(num_rows, -1);
+    for(Index i = 0; i < Index(row.size()); ++i) of_row[row[i]] = i;
+    for(const auto& [v, r] : vertex_rows)
+      if(of_row[r] >= 0) f(v, of_row[r]);
+  }
+
+  /// Per-topology-vertex values as rows of the numbering, `fill` in rows in no face.
+  template <typename Matrix>
+  Matrix to_rows(const Matrix& values, double fill) const
+  {
+    if(row.empty()) return values;
+    Matrix out = Matrix::Constant(num_rows, values.cols(), fill);
+    for(Index i = 0; i < Index(row.size()); ++i) out.row(row[i]) = values.row(i);
+    return out;
+  }
+  Eigen::VectorXd to_rows(const Eigen::VectorXd& values, double fill) const
+  {
+    if(row.empty()) return values;
+    Eigen::VectorXd out = Eigen::VectorXd::Constant(num_rows, fill);
+    for(Index i = 0; i < Index(row.size()); ++i) out[row[i]] = values[i];
+    return out;
+  }
+  /// A matrix over the topology's vertices as one over the rows (zero in rows in no face).
+  Eigen::SparseMatrix<double> to_rows(const Eigen::SparseMatrix<double>& A) const
+  {
+    if(row.empty()) return A;
+    std::vector<Eigen::Triplet<double, Index>> entries;
+    entries.reserve(std::size_t(A.nonZeros()));
+    for(Index j = 0; j < A.outerSize(); ++j)
+      for(Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+        entries.emplace_back(row[it.row()], row[it.col()], it.value());
+    Eigen::SparseMatrix<double> out(num_rows, num_rows);
+    out.setFromTriplets(entries.begin(), entries.end());
+    return out;
+  }
 };
 
 template <typename TriangleMesh, typename VertexIndexMap, typename VertexPointMap>
@@ -53,23 +115,39 @@ Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, Verte
 {
   using GT = boost::graph_traits<TriangleMesh>;
   Extracted_arrays<TriangleMesh> out;
-  const Index n = static_cast<Index>(vertices(tm).size());
+  const Index count = static_cast<Index>(vertices(tm).size());
+  out.vertex_rows.reserve(count);
+  Index n = 0;
+  for(typename GT::vertex_descriptor v : vertices(tm)) {
+    const auto id = static_cast<long long>(get(vim, v));
+    if(id < 0 || id >= count)
+      throw Mesh_error("the vertex index map gives index " + std::to_string(id) + ", outside [0, " +
+                       std::to_string(count) + ")");
+    out.vertex_rows.emplace_back(v, Index(id));
+    n = std::max(n, Index(id) + 1);
+  }
   out.vertices.resize(n);
   out.positions.resize(n, 3);
   std::vector<char> seen(n, 0);
-  for(typename GT::vertex_descriptor v : vertices(tm)) {
-    const auto id = static_cast<long long>(get(vim, v));
-    if(id < 0 || id >= n || seen[id])
-      throw Mesh_error("the vertex index map is not a bijection onto [0, " + std::to_string(n) + ")");
-    seen[id] = 1;
-    out.vertices[id] = v;
+  for(const auto& [v, id] : out.vertex_rows) {
     const auto& p = get(vpm, v);
     const double x = CGAL::to_double(p.x()), y = CGAL::to_double(p.y()), z = CGAL::to_double(p.z());
     if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
       throw Mesh_error("vertex " + std::to_string(id) + " has a non-finite coordinate",
                        Mesh_error::Element::vertex, id);
+    if(seen[id]) {  // a welded copy
+      if(out.positions(id, 0) != x || out.positions(id, 1) != y || out.positions(id, 2) != z)
+        throw Mesh_error("two vertices with index " + std::to_string(id) +
+                           " in the vertex index map have different positions",
+                         Mesh_error::Element::vertex, id);
+      continue;
+    }
+    seen[id] = 1;
+    out.vertices[id] = v;
     out.positions.row(id) << x, y, z;
   }
+  for(Index i = 0; i < n; ++i)
+    if(!seen[i]) throw Mesh_error("the vertex index map gives no vertex the index " + std::to_string(i));
   std::vector<Index>& triangles = out.triangles;
   triangles.reserve(3 * faces(tm).size());
   Index f_index = 0;
@@ -135,25 +213,50 @@ Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const Name
 }
 
 /// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
-/// vertex_index_map). Throws Mesh_error on non-triangle faces, non-finite coordinates,
-/// isolated vertices and non-manifold edges.
+/// vertex_index_map), over the rows that are in a face. Throws Mesh_error on non-triangle
+/// faces, non-finite coordinates, a face with a repeated vertex, and a mesh with no face.
 template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np)
 {
   Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np);
   Extracted_mesh<TriangleMesh> out;
-  out.topology = build_topology(Index(arrays.vertices.size()), std::move(arrays.triangles));
-  out.positions = std::move(arrays.positions);
-  out.vertices = std::move(arrays.vertices);
+  const Index n = Index(arrays.vertices.size());
+  out.num_rows = n;
+  out.vertex_rows = std::move(arrays.vertex_rows);
+  if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
+  std::vector<Index> topology_vertex(n, -1);
+  for(Index v : arrays.triangles)
+    if(v >= 0 && v < n) topology_vertex[v] = 0;
+  Index used = 0;
+  for(Index r = 0; r < n; ++r)
+    if(topology_vertex[r] == 0) topology_vertex[r] = used++;
+  if(used == n) {
+    out.topology = build_topology(n, std::move(arrays.triangles));
+    out.positions = std::move(arrays.positions);
+    out.vertices = std::move(arrays.vertices);
+    return out;
+  }
+  // Rows in no face are left out of the computation.
+  out.row.resize(used);
+  out.positions.resize(used, 3);
+  out.vertices.resize(used);
+  for(Index r = 0; r < n; ++r)
+    if(topology_vertex[r] >= 0) {
+      out.row[topology_vertex[r]] = r;
+      out.positions.row(topology_vertex[r]) = arrays.positions.row(r);
+      out.vertices[topology_vertex[r]] = arrays.vertices[r];
+    }
+  for(Index& v : arrays.triangles) v = topology_vertex[v];
+  out.topology = build_topology(used, std::move(arrays.triangles));
   return out;
 }
 
-/// Writes per-vertex values (indexed like the extraction) into a vertex property map.
-template <typename VertexDescriptors, typename Values, typename PropertyMap>
-void write_vertex_values(const VertexDescriptors& vertices, const Values& values, PropertyMap map)
+/// Writes per-row values into a vertex property map, for every vertex of an extraction.
+template <typename Extracted, typename Values, typename PropertyMap>
+void write_row_values(const Extracted& mesh, const Values& values, PropertyMap map)
 {
   using Value = typename boost::property_traits<PropertyMap>::value_type;
-  for(std::size_t i = 0; i < vertices.size(); ++i) put(map, vertices[i], static_cast<Value>(values[i]));
+  for(const auto& [v, r] : mesh.vertex_rows) put(map, v, static_cast<Value>(values[r]));
 }
 
 } // namespace internal

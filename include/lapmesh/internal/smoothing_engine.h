@@ -57,6 +57,7 @@ struct Smoothing_settings
   Smoothing_scheme scheme = Smoothing_scheme::implicit_euler;
   Laplacian laplacian = Laplacian::cotangent;
   Vertex_area area = Vertex_area::barycentric;
+  double mollification = default_mollification_factor;  ///< intrinsic Delaunay only
   double lambda = 0;
   int iterations = 1;
   bool fixed_operator = false;
@@ -129,6 +130,13 @@ public:
   Smoothing_report run(const std::vector<char>& fixed)
   {
     init(fixed);
+    if(m_report.free_vertices == 0) {  // nothing can move: every step leaves P as it is
+      for(int it = 0; it < m_s.iterations; ++it) {
+        ++m_report.iterations;
+        if(m_s.progress) m_s.progress(it + 1, m_s.iterations);
+      }
+      return m_report;
+    }
     setup_system();
     for(int it = 0; it < m_s.iterations; ++it) {
       if(it > 0 && m_rebuild) update_mesh(it);
@@ -155,7 +163,7 @@ private:
     m_report.free_vertices = std::size_t(nf);
     if(m_s.restore_volume && m_s.restore_area)
       throw std::invalid_argument("restore the volume or the area, not both");
-    if(m_s.restore_volume && (nf != n || m_t.num_boundary_edges != 0))
+    if(m_s.restore_volume && (nf != n || m_t.num_boundary_edges != 0 || !m_t.manifold))
       throw Parameter_error("restore_volume", "volume restoration needs a closed mesh without constrained vertices "
                                               "(it rescales the whole mesh, which would move fixed vertices)");
     if(m_s.restore_area && nf != n) {
@@ -171,7 +179,7 @@ private:
                           m_t, m_P);
 
     const auto t0 = Clock::now();
-    assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil);
+    assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
     require_positive_mass(m_s.laplacian, m_pencil.mass, m_s.area);
     m_report.assembly_seconds += seconds_since(t0);
 
@@ -249,10 +257,10 @@ private:
     const auto t0 = Clock::now();
     rebuild_operator_after(it, [&] {
       if(m_rebuild_stiffness) {
-        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil);
+        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
       } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
         Laplacian_pencil current;
-        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current);
+        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
         m_pencil.mass = std::move(current.mass);
       } else {
         m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);

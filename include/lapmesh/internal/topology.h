@@ -125,14 +125,24 @@ struct Mesh_topology
 
   std::vector<char> on_boundary;
 
+  /// False when some edge has more than two faces, or two faces on the same side (faces
+  /// that disagree in orientation). The slots of such an edge hold the first face of each
+  /// side; `edge_fans` holds all of them. Only the intrinsic Delaunay Laplacian, through the
+  /// tufted cover, takes such a mesh (require_manifold()).
+  bool manifold = true;
+  /// For each non-manifold edge (i < j): its slot in row i, then the corners opposite every
+  /// halfedge on it. Flattened: fan_begin[e] .. fan_begin[e+1] index fan_corners.
+  std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
+
   Index num_nonzeros() const { return static_cast<Index>(inner.size()); }
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
 };
 
 /// Builds the topology from a triangle list over vertices 0..n-1.
-/// Throws Mesh_error for an index out of range, a face with a repeated vertex, a vertex in
-/// no face, and an edge with two faces on the same side (three or more faces around an
-/// edge, or two neighbouring faces with opposite orientations).
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
+/// in no face. An edge with two faces on the same side (three or more faces around an edge,
+/// or two neighbouring faces with opposite orientations) makes the topology non-manifold
+/// (`manifold` false, the edge in `edge_fans`).
 inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles)
 {
   Mesh_topology t;
@@ -204,18 +214,23 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
       const Index j = static_cast<Index>(ring[k] >> 33);
       if(!diagonal_done && j > i) emit_diagonal();
       std::array<Index, 2> corners = {-1, -1};
+      const std::size_t first = k;
+      bool fan = false;
       for(; k < ring.size() && static_cast<Index>(ring[k] >> 33) == j; ++k) {
         const Index corner = static_cast<Index>(ring[k] & 0xffffffffu);
         Index& slot = corners[(ring[k] >> 32) & 1u];
-        if(slot != -1) {
-          const Index f = corner / 3;
-          throw Mesh_error("edge (" + std::to_string(i) + ", " + std::to_string(j) +
-                             ") at face " + std::to_string(f) +
-                             " is non-manifold: it has more than two faces, or two faces "
-                             "with opposite orientations",
-                           Mesh_error::Element::face, f);
+        if(slot != -1)
+          fan = true;
+        else
+          slot = corner;
+      }
+      if(fan) {
+        t.manifold = false;
+        if(j > i) {
+          t.fan_slot.push_back(static_cast<Index>(t.inner.size()));
+          for(std::size_t r = first; r < k; ++r) t.fan_corners.push_back(static_cast<Index>(ring[r] & 0xffffffffu));
+          t.fan_begin.push_back(static_cast<Index>(t.fan_corners.size()));
         }
-        slot = corner;
       }
       if(corners[0] == -1 || corners[1] == -1) {
         t.on_boundary[i] = 1;
@@ -229,6 +244,22 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     t.outer[i + 1] = static_cast<Index>(t.inner.size());
   }
   return t;
+}
+
+/// Throws Mesh_error naming the first non-manifold edge: the operators built on the edge
+/// slots (cotangent, uniform) need at most one face on each side of an edge.
+inline void require_manifold(const Mesh_topology& t, const char* operator_name)
+{
+  if(t.manifold) return;
+  const Index slot = t.fan_slot.front();
+  const Index j = t.inner[slot];
+  const Index i = Index(std::upper_bound(t.outer.begin(), t.outer.end(), slot) - t.outer.begin()) - 1;
+  const Index faces = t.fan_begin[1] - t.fan_begin[0], f = t.fan_corners.front() / 3;
+  throw Mesh_error("edge (" + std::to_string(i) + ", " + std::to_string(j) + ") at face " + std::to_string(f) +
+                     " is non-manifold (" + std::to_string(faces) +
+                     " faces, or two faces with opposite orientations): the " + operator_name +
+                     " Laplacian needs a manifold mesh; the intrinsic-delaunay Laplacian takes it",
+                   Mesh_error::Element::face, f);
 }
 
 /// Number of connected components (through edges), by union–find over the faces.
