@@ -502,9 +502,12 @@ TEST(DenoisingCli, LegendEntriesMatchThePlottedSeries)
     }
     // The colour and dash of the sample are the series' own.
     const std::size_t stroke = series[i].find("stroke=\"");
-    if(line) EXPECT_NE(legend[i].find(series[i].substr(stroke, 16)), std::string::npos) << legend[i];
-    if(line) EXPECT_EQ(legend[i].find("stroke-dasharray") != std::string::npos,
-                       series[i].find("stroke-dasharray") != std::string::npos) << legend[i];
+    if(line) {
+      EXPECT_NE(legend[i].find(series[i].substr(stroke, 16)), std::string::npos) << legend[i];
+      EXPECT_EQ(legend[i].find("stroke-dasharray") != std::string::npos,
+                series[i].find("stroke-dasharray") != std::string::npos)
+        << legend[i];
+    }
   }
   EXPECT_EQ(empty_entries, 1);  // implicit cotangent after 12 iterations
 }
