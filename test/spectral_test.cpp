@@ -285,6 +285,88 @@ void expect_documented_limit(const lapmesh::Triangle_soup& soup, const std::stri
 
 } // namespace
 
+namespace {
+
+// Many small closed components, as in CGAL's boeing.off (122 components) and b9_mesh.off (47):
+// 27 irregular tetrahedra of different sizes and 3 bumpy spheres, 30 components in all.
+lapmesh::Triangle_soup many_components()
+{
+  lapmesh::Triangle_soup soup;
+  auto add = [&](const lapmesh::Triangle_soup& s, double scale, double dx, double dy) {
+    const int off = int(soup.points.size());
+    for(auto p : s.points) soup.points.push_back({scale * p[0] + dx, scale * p[1] + dy, scale * p[2]});
+    for(auto t : s.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
+  };
+  for(int i = 0; i < 27; ++i) {
+    lapmesh::Triangle_soup tet;
+    const double a = 0.1 * (i % 5), b = 0.07 * (i % 3);
+    tet.points = {{0, 0, 0}, {1 + a, 0, 0}, {b, 1, 0}, {0.3, 0.2 + a, 1 - b}};
+    tet.triangles = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {2, 0, 3}};
+    add(tet, 0.5 + 0.05 * i, 3.0 * i, 0);
+  }
+  for(int i = 0; i < 3; ++i) add(lapmesh::bumpy_sphere(2), 1.0 + 0.3 * i, 3.0 * i, 5);
+  return soup;
+}
+
+} // namespace
+
+TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
+{
+  // lambda = 0 once per component: with more components than the k + extra pairs a Krylov run
+  // is asked for, the pairs it found were round-off inside the null space of -S, the
+  // completeness check put tau between two of them, and the LDL^T factorisation of the
+  // (numerically singular) -S - tau M failed. The basis must hold the whole null space (every
+  // member of the eigenspace of lambda_{k-1}), then the positive pairs, verified.
+  const Mesh m = to_mesh(many_components());
+  const Eigen::Index c = 30;
+  for(auto lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lap));
+    const Eigen::Index n = pencil.mass.size();
+    ASSERT_EQ(n, 27 * 4 + 3 * 162);
+    const Eigen::MatrixXd Md = Eigen::VectorXd(pencil.mass).asDiagonal();
+    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> dense(-Eigen::MatrixXd(pencil.stiffness), Md,
+                                                                          Eigen::EigenvaluesOnly);
+    ASSERT_EQ(dense.info(), Eigen::Success);
+    const Eigen::VectorXd& exact = dense.eigenvalues();
+    ASSERT_LT(std::abs(exact[c - 1]), 1e-9 * exact[c]);  // the null space has dimension c
+    for(const char* solver : {"block", "spectra", "bands"})
+      for(Eigen::Index k : {1, 10, 30, 40}) {
+        const std::string what = std::string(lap == lapmesh::Laplacian::uniform ? "uniform " : "cotangent ") + solver +
+                                 " k=" + std::to_string(k);
+        lapmesh::Spectral_options opt;
+        if(std::string(solver) == "spectra") opt.method = lapmesh::Krylov_method::spectra;
+        if(std::string(solver) == "bands") opt.band_size = 8;  // k > 8: bands of 8 pairs or more
+        lapmesh::Spectral_basis b;
+        try {
+          b = lapmesh::Spectral_basis::from_pencil(pencil, k, opt);
+        } catch(const lapmesh::Numerical_error& e) {
+          ADD_FAILURE() << what << ": " << e.what();
+          continue;
+        }
+        if(b.size() < std::max(k, c)) {
+          ADD_FAILURE() << what << ": " << b.size() << " pairs held, the null space has dimension " << c;
+          continue;
+        }
+        EXPECT_LT(m_orthonormality_error(b), 1e-8) << what;
+        const Eigen::VectorXd& lambda = b.eigenvalues();
+        const Eigen::MatrixXd& Phi = b.eigenvectors();
+        for(Eigen::Index j = 0; j < b.size(); ++j) {
+          EXPECT_NEAR(lambda[j], exact[j], 1e-8 * (1 + exact[j])) << what << " " << j;
+          const Eigen::VectorXd MPhi = pencil.mass.cwiseProduct(Phi.col(j));
+          const Eigen::VectorXd r = -(pencil.stiffness * Phi.col(j)) - lambda[j] * MPhi;
+          EXPECT_LT(r.norm(), 1e-7 * std::max(lambda[j], exact[c]) * MPhi.norm()) << what << " " << j;
+        }
+        // The held set ends at a gap, with exactly as many eigenvalues below it (inertia).
+        if(b.size() < n) {
+          const Eigen::Index h = b.size();
+          EXPECT_GT(exact[h] - exact[h - 1], 1e-6 * exact[h]) << what;
+          EXPECT_EQ(eigenvalues_below(pencil, 0.5 * (exact[h - 1] + exact[h])), h) << what;
+        }
+        if(k < c) EXPECT_TRUE(b.splits_eigenspace(k)) << what;
+      }
+  }
+}
+
 TEST(Spectral, DocumentedLimitOnIcosphere) { expect_documented_limit(lapmesh::icosphere(4, 1.0), "icosphere"); }
 
 TEST(Spectral, DocumentedLimitOnBumpySphere) { expect_documented_limit(lapmesh::bumpy_sphere(4), "bumpy sphere"); }

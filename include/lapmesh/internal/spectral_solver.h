@@ -21,6 +21,16 @@
 // counts the eigenvalues below tau exactly by Sylvester's law of inertia: the number of
 // negative pivots of the LDL^T factorisation of -S - tau M. A mismatch triggers a retry with
 // more extra pairs, then a Numerical_error: never a silent partial basis.
+//
+// Null space. On a mesh of c > 1 connected components lambda = 0 has multiplicity c, and the
+// indicator of each component is an exact null vector of -S (rows sum to zero). Computed by
+// Krylov, these c values are round-off around 0: with c >= k the cluster of lambda_{k-1} was
+// split at a spurious gap, and the inertia check put tau inside it, where -S - tau M is
+// singular to working precision (CAD meshes have dozens to hundreds of components). The solver
+// therefore takes the null space exactly (the M-normalised indicators, lambda = 0), runs the
+// Krylov method on its M-orthogonal complement (the right-hand sides lose their component sums,
+// the solutions their M-weighted component means), and checks by inertia that exactly c
+// eigenvalues lie below the first gap above 0. A connected mesh (c = 1) is solved as before.
 #ifndef LAPMESH_INTERNAL_SPECTRAL_SOLVER_H
 #define LAPMESH_INTERNAL_SPECTRAL_SOLVER_H
 
@@ -80,6 +90,123 @@ private:
   mutable Eigen::VectorXd m_b;
   mutable long long m_ops = 0;
   const std::function<void(long long)>& m_on_op;
+};
+
+/// The null space of -S on a mesh of several connected components (see "Null space" above):
+/// the components of the graph of S's non-zero off-diagonal entries, when there are at least
+/// two and every row of S sums to zero to round-off. Inactive (count() == 0) otherwise: a
+/// connected mesh, or a pencil whose stiffness is not a Laplacian (from_pencil accepts any).
+class Null_space_deflation
+{
+public:
+  Null_space_deflation() = default;
+  Null_space_deflation(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
+  {
+    const Eigen::Index n = minus_S.rows();
+    std::vector<Eigen::Index> parent(static_cast<std::size_t>(n));
+    std::iota(parent.begin(), parent.end(), Eigen::Index(0));
+    auto root = [&](Eigen::Index v) {
+      while(parent[std::size_t(v)] != v) v = parent[std::size_t(v)] = parent[std::size_t(parent[std::size_t(v)])];
+      return v;
+    };
+    for(Eigen::Index j = 0; j < minus_S.outerSize(); ++j) {
+      double row_sum = 0, row_abs = 0;  // S is symmetric: column j is row j
+      for(Eigen::SparseMatrix<double>::InnerIterator it(minus_S, j); it; ++it) {
+        row_sum += it.value();
+        row_abs += std::abs(it.value());
+        if(it.value() != 0 && it.index() != j) {
+          const Eigen::Index a = root(it.index()), b = root(j);
+          if(a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);
+        }
+      }
+      if(!(std::abs(row_sum) <= 1e-10 * row_abs)) return;  // not a Laplacian: no known null space
+    }
+    m_component.resize(n);
+    Eigen::Index c = 0;
+    std::vector<Eigen::Index> label(static_cast<std::size_t>(n), -1);
+    for(Eigen::Index v = 0; v < n; ++v) {  // numbered by their first vertex
+      Eigen::Index& l = label[std::size_t(root(v))];
+      if(l < 0) l = c++;
+      m_component[v] = int(l);
+    }
+    if(c < 2) {
+      m_component.resize(0);
+      return;
+    }
+    m_mass = Eigen::VectorXd::Zero(c);
+    for(Eigen::Index v = 0; v < n; ++v) m_mass[m_component[v]] += mass[v];
+  }
+  /// The dimension of the deflated null space (0: inactive).
+  Eigen::Index count() const { return m_mass.size(); }
+  /// B <- B - M 1_C (1_C^T B) / m_C for every component C: the right-hand sides of K u = B lose
+  /// their null-space loads (K = -S - sigma M maps null vectors onto M 1_C).
+  void remove_loads(Eigen::Ref<Eigen::MatrixXd> B, const Eigen::VectorXd& mass) const
+  {
+    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), B.cols());
+    for(Eigen::Index v = 0; v < B.rows(); ++v) sums.row(m_component[v]) += B.row(v);
+    sums.array().colwise() /= m_mass.array();
+    for(Eigen::Index v = 0; v < B.rows(); ++v) B.row(v) -= mass[v] * sums.row(m_component[v]);
+  }
+  /// U <- U - 1_C (1_C^T M U) / m_C for every component C: M-orthogonal to the null space.
+  void remove_means(Eigen::Ref<Eigen::MatrixXd> U, const Eigen::VectorXd& mass) const
+  {
+    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), U.cols());
+    for(Eigen::Index v = 0; v < U.rows(); ++v) sums.row(m_component[v]) += mass[v] * U.row(v);
+    sums.array().colwise() /= m_mass.array();
+    for(Eigen::Index v = 0; v < U.rows(); ++v) U.row(v) -= sums.row(m_component[v]);
+  }
+  /// The null space's M-orthonormal basis: column C is 1_C / sqrt(m_C).
+  Eigen::MatrixXd null_vectors() const
+  {
+    Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(m_component.size(), count());
+    for(Eigen::Index v = 0; v < Z.rows(); ++v) Z(v, m_component[v]) = 1.0 / std::sqrt(m_mass[m_component[v]]);
+    return Z;
+  }
+  /// The pairs on the complement, (re)projected and M-normalised against round-off, after the
+  /// null space's c pairs (lambda = 0).
+  void prepend_null_space(Spectral_pairs& pairs, const Eigen::VectorXd& mass) const
+  {
+    const Eigen::Index c = count(), m = pairs.values.size();
+    remove_means(pairs.vectors, mass);
+    for(Eigen::Index j = 0; j < m; ++j)
+      pairs.vectors.col(j) /= std::sqrt(pairs.vectors.col(j).cwiseAbs2().dot(mass));
+    Eigen::VectorXd values(c + m);
+    values << Eigen::VectorXd::Zero(c), pairs.values;
+    Eigen::MatrixXd vectors(mass.size(), c + m);
+    vectors << null_vectors(), pairs.vectors;
+    pairs.values = std::move(values);
+    pairs.vectors = std::move(vectors);
+  }
+
+private:
+  Eigen::VectorXi m_component;  // per vertex
+  Eigen::VectorXd m_mass;       // per component: m_C = 1_C^T M 1_C
+};
+
+/// K^-1 on the M-orthogonal complement of the null space: u = K^-1 b with b's null-space loads
+/// removed, then u's component means (round-off, since 1_C^T K u = -sigma m_C mean_C(u)).
+/// Stands in for the factor in the Krylov runs.
+template <typename Factor>
+class Deflated_solve
+{
+public:
+  Deflated_solve(const Factor& f, const Null_space_deflation& d, const Eigen::VectorXd& mass)
+    : m_factor(f), m_deflation(d), m_mass(mass)
+  {}
+  template <typename Rhs>
+  Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
+  {
+    Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> r = b;
+    m_deflation.remove_loads(r, m_mass);
+    Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> u = m_factor.solve(r);
+    m_deflation.remove_means(u, m_mass);
+    return u;
+  }
+
+private:
+  const Factor& m_factor;
+  const Null_space_deflation& m_deflation;
+  const Eigen::VectorXd& m_mass;
 };
 
 /// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
@@ -256,10 +383,13 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
                           std::to_string(opt.dense_limit) + " vertices");
   using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
   const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
-  const Eigen::Index max_window = n - 2;  // Spectra needs nev < n
+  const Null_space_deflation null_space(minus_S, mass);
+  const Eigen::Index c = null_space.count();                  // 0 on a connected mesh
+  const Eigen::Index max_window = std::max<Eigen::Index>(1, n - c - 2);  // Spectra needs nev < n
   const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), max_window);
   constexpr int max_attempts = 12;        // per band; a widening multiplies the window by 1.5
   Ldlt ldlt;
+  const Deflated_solve<Ldlt> deflated(ldlt, null_space, mass);
   bool analysed = false;
   auto factor_at = [&](double sigma) -> Eigen::Index {
     Eigen::SparseMatrix<double> K = minus_S;
@@ -281,8 +411,13 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
   };
   auto relative_gap = [](double a, double b) { return (b - a) / std::max(std::abs(b), 1e-300); };
 
-  std::vector<double> values;
+  // The null space's c pairs are held from the start; the first band verifies their count.
+  std::vector<double> values(static_cast<std::size_t>(c), 0.0);
   std::vector<Eigen::VectorXd> vectors;
+  if(c > 0) {
+    const Eigen::MatrixXd Z = null_space.null_vectors();
+    for(Eigen::Index j = 0; j < c; ++j) vectors.push_back(Z.col(j));
+  }
   double u = 0;          // every eigenvalue below u is in `values` (verified by inertia)
   double density = 0;    // eigenvalues per unit of lambda in the last band
   double sigma = -opt.shift_factor / mass.sum();
@@ -295,7 +430,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
                             " pairs; last: " + why + ")");
     if(widen) window = std::min<Eigen::Index>(max_window, window + window / 2);
   };
-  while(Eigen::Index(values.size()) < k) {
+  while(Eigen::Index(values.size()) < k || band == 0) {
     const Eigen::Index accepted = Eigen::Index(values.size());
     // The window of the pairs nearest sigma reaches back below u only if [u, 2 sigma - u]
     // holds fewer than it does: count them exactly by inertia (a factorisation costs far less
@@ -304,7 +439,13 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
     for(int i = 0; band > 0 && i < 64 && factor_at(2 * sigma - u) - accepted > window - window / 8; ++i)
       sigma = u + 0.5 * (sigma - u);
     factor_at(sigma);
-    Spectral_pairs F = lanczos_run(ldlt, sqrt_mass, sigma, window, opt, on_op);
+    Spectral_pairs F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, window, opt, on_op)
+                             : lanczos_run(ldlt, sqrt_mass, sigma, window, opt, on_op);
+    if(c > 0) {  // the complement's pairs only: re-project them against round-off
+      null_space.remove_means(F.vectors, mass);
+      for(Eigen::Index j = 0; j < F.values.size(); ++j)
+        F.vectors.col(j) /= std::sqrt(F.vectors.col(j).cwiseAbs2().dot(mass));
+    }
     ops_total += F.operations;
     const Eigen::Index m = F.values.size();
 #ifdef LAPMESH_DEBUG_BANDS
@@ -401,13 +542,19 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
   factorise_or_throw(factor, K);
   K = Eigen::SparseMatrix<double>();
   const Fill_permutation P = opt.check_completeness ? fill_permutation(factor) : Fill_permutation();
+  const Null_space_deflation null_space(minus_S, mass);
+  const Eigen::Index c = null_space.count();  // 0 on a connected mesh
+  const Deflated_solve<Factor> deflated(factor, null_space, mass);
   long long total_ops = 0;
   const std::function<void(long long)> on_op = [&](long long ops) {
     if(opt.progress) report("lanczos", ops);
   };
   for(;; ++attempt) {
-    const Eigen::Index m = std::min<Eigen::Index>(k + extra, n - 2);
-    Spectral_pairs pairs = lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op);
+    // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
+    const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, opt, on_op)
+                                 : lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op);
+    if(c > 0) null_space.prepend_null_space(pairs, mass);
     total_ops += pairs.operations;
     pairs.operations = total_ops;
     pairs.attempts = attempt;
@@ -429,7 +576,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
     }
     // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
     // the computed pairs: ask for more.
-    if(attempt >= 4 || m >= n - 2)
+    if(attempt >= 4 || m >= n - c - 2)
       throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
                             " smallest eigenpairs (repeated eigenvalues missed after " + std::to_string(attempt) +
                             " attempts)");
