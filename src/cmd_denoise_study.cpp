@@ -2,6 +2,7 @@
 // noise level, scheme, Laplacian, time step and iteration (lapmesh/denoising.h), with an
 // optional SVG plot and the best time step per level and scheme on stdout.
 #include "cli_common.h"
+#include "blas_warning.h"
 #include "svg_plot.h"
 
 
@@ -312,6 +313,7 @@ void run(const Study_options& o)
     throw Failure(o.input + ": --progress-interval must be a positive number of seconds");
 
   const Mesh mesh = load_mesh(o.input);
+  warn_if_slow_blas(std::any_of(s.schemes.begin(), s.schemes.end(), [](auto k) { return k != lapmesh::Smoothing_scheme::explicit_euler; }));
   // Progress by default (a study runs for minutes), off with --quiet unless asked for.
   const bool show_progress = o.progress || (!o.no_progress && !o.quiet);
   std::unique_ptr<Study_progress> progress;

@@ -1,6 +1,7 @@
 // lapmesh reconstruct IN -o OUT -k K: the mesh rebuilt from its k smallest eigenvectors,
 // x <- sum_{i<k} (x^T M phi_i) phi_i per coordinate, with the input's vertex order and faces.
 #include "cli_common.h"
+#include "blas_warning.h"
 
 #include <lapmesh/spectral_reconstruction.h>
 
@@ -44,6 +45,7 @@ void run(const Reconstruct_options& o, bool laplacian_given, bool area_given)
   } else if(!o.basis_size.empty()) {
     s.basis_size = parse_count_option(o.input, "--basis-size", o.basis_size, 0, n, ", the number of vertices");
   }
+  warn_if_slow_blas(o.load_basis.empty());
   lapmesh_ops::Reconstruction r;
   {
     Spectral_progress_line line;

@@ -1,5 +1,6 @@
 // lapmesh smooth IN -o OUT: explicit / implicit Laplacian smoothing, conformalized MCF.
 #include "cli_common.h"
+#include "blas_warning.h"
 
 #include <iostream>
 #include <memory>
@@ -43,6 +44,7 @@ void run(const Smooth_options& o)
   check_output_path(o.output, lapmesh_ops::mesh_output_formats());
 
   Mesh mesh = load_mesh(o.input);
+  warn_if_slow_blas(s.scheme != lapmesh::Smoothing_scheme::explicit_euler);
   const bool tty = isatty(STDERR_FILENO);
   if(tty && !o.quiet)
     s.progress = [](int done, int total) {

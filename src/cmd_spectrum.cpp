@@ -1,5 +1,6 @@
 // lapmesh spectrum IN -o OUT.csv -k K: the k smallest Laplace–Beltrami eigenvalues.
 #include "cli_common.h"
+#include "blas_warning.h"
 
 #include <lapmesh/spectral_reconstruction.h>
 
@@ -30,6 +31,7 @@ void run(const Spectrum_options& o)
   s.laplacian = enum_from<lapmesh::Laplacian>(o.laplacian);
   s.area = enum_from<lapmesh::Vertex_area>(o.area);
   s.mollification = o.mollification;
+  warn_if_slow_blas();
   std::shared_ptr<const lapmesh::Spectral_basis> basis;
   {
     Spectral_progress_line line;

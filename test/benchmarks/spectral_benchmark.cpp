@@ -1,7 +1,8 @@
 // Spectral basis timings (doc/spectral.md): lapmesh's solver (shift-invert Lanczos on the
-// standardised pencil, SimplicialLLT or CHOLMOD) against the plain public set-up
-// (Spectra's SymGEigsShiftSolver, ShiftInvert mode, on Eigen's
-// SimplicialLDLT), on the same pencils, in one run so that ratios are comparable.
+// standardised pencil, SimplicialLLT or CHOLMOD) against Spectra's SymGEigsShiftSolver
+// (ShiftInvert mode) with Spectra's own SymShiftInvert operator (a SparseLU; the usual public
+// set-up uses Eigen's SimplicialLDLT instead), on the same pencils, in one run so that ratios
+// are comparable.
 // Meshes: CGAL's data set, Loop-subdivided to reach the sizes (closed or with boundary).
 //   ./spectral_benchmark --benchmark_filter=...   (peak memory: /usr/bin/time -v, one filter at a time)
 #include "test_helpers.h"
@@ -83,7 +84,7 @@ void BM_lapmesh_nocheck(benchmark::State& state)
   state.counters["n"] = double(p.mass.size());
 }
 
-// The public baseline: Spectra's generalized shift-invert on Eigen's SimplicialLDLT.
+// Spectra's generalized shift-invert with its own SymShiftInvert (a SparseLU), not Eigen's SimplicialLDLT.
 void BM_plain_spectra(benchmark::State& state)
 {
   const auto& p = pencil(int(state.range(0)));
