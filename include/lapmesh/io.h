@@ -6,10 +6,12 @@
 // the file's size, content after a complete OFF, PLY or STL is refused, and messages quote
 // at most a short escaped excerpt of the file. STL has no shared vertices: they are merged
 // by exact position in order of first appearance. The soup is then validated
-// (internal/io_soup.h: finite coordinates, index ranges, every vertex in a face, no zero-area
-// face, coordinates in the representable range, manifold edges), polygons with more than
-// three vertices are triangulated by ear clipping, faces are re-oriented consistently when
-// the file mixes orientations, and the mesh is built with the input vertex order.
+// (internal/io_soup.h: finite coordinates, index ranges, coordinates in the representable
+// range; zero-area faces, vertices in no face and non-manifold edges are counted, not
+// refused), polygons with more than three vertices are triangulated by ear clipping, faces
+// are re-oriented consistently where the surface allows it, and the mesh is built with the
+// input vertex order (face by face, with the input numbering to weld it, when a FaceGraph
+// cannot hold it as it is).
 //
 // Writing. OFF (COFF with colours), PLY (ASCII, with per-vertex double properties and
 // colours), OBJ and STL, every number with 17 significant digits. Writes are atomic: the
