@@ -76,7 +76,7 @@ def laplacian(V, F=None, **options):
     negative semidefinite) and the mass diagonal M as a numpy array (the vertex areas for the
     cotangent Laplacian, the degrees for the uniform one). L = M^-1 S.
 
-    Keyword options: laplacian, area (as curvatures()). Needs scipy (Debian: python3-scipy);
+    Keyword options: laplacian, area, mollification (as curvatures()). Needs scipy (Debian: python3-scipy);
     laplacian_arrays() gives the same matrix as CSR arrays without it."""
     try:
         import scipy.sparse

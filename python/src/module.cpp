@@ -316,11 +316,21 @@ void translate(std::exception_ptr p)
 }
 
 // The operator of `curvatures` and `laplacian`: the Laplacian and vertex area by name.
-lapmesh_ops::Curvature_settings operator_settings(const std::string& laplacian, const std::string& area)
+double mollification_arg(double factor)
+{
+  if(!(factor >= 0 && factor <= 1))
+    throw lapmesh::Parameter_error("mollification", "must be a number in [0, 1] (got " + std::to_string(factor) + ")",
+                                   "1e-05");
+  return factor;
+}
+
+lapmesh_ops::Curvature_settings operator_settings(const std::string& laplacian, const std::string& area,
+                                                  double mollification)
 {
   lapmesh_ops::Curvature_settings s;
   s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
   s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+  s.mollification = mollification_arg(mollification);
   return s;
 }
 
@@ -443,8 +453,9 @@ PYBIND11_MODULE(_lapmesh, m)
 
   m.def(
     "curvatures",
-    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
-      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area);
+    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area,
+       double mollification) {
+      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area, mollification);
       const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
       const Mesh& mesh = *held;
       lapmesh::Vertex_curvatures c;
@@ -458,14 +469,16 @@ PYBIND11_MODULE(_lapmesh, m)
                         rows_array(std::move(c.laplacian))};
     },
     py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
-    py::arg("area") = default_name(curvature_defaults.area),
+    py::arg("area") = default_name(curvature_defaults.area), py::arg("mollification") = curvature_defaults.mollification,
     "Mean, Gaussian and principal curvatures per vertex (as `lapmesh curvature`).\n\n"
-    "laplacian: see lapmesh.names('laplacian'); area: see lapmesh.names('area').");
+    "laplacian: see lapmesh.names('laplacian'); area: see lapmesh.names('area'); mollification:\n"
+    "intrinsic-delaunay only, the triangle-inequality margin in mean edge lengths (0: none).");
 
   m.def(
     "_laplacian_csr",
-    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area) {
-      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area);
+    [](const py::object& V, const py::object& F, const std::string& laplacian, const std::string& area,
+       double mollification) {
+      const lapmesh_ops::Curvature_settings s = operator_settings(laplacian, area, mollification);
       const std::shared_ptr<const Mesh> held = mesh_arg(V, F);
       const Mesh& mesh = *held;
       lapmesh_ops::Csr_laplacian L;
@@ -483,7 +496,7 @@ PYBIND11_MODULE(_lapmesh, m)
       return py::make_tuple(data, indices, indptr, n, vector_array(std::move(L.mass)));
     },
     py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
-    py::arg("area") = default_name(curvature_defaults.area),
+    py::arg("area") = default_name(curvature_defaults.area), py::arg("mollification") = curvature_defaults.mollification,
     "(data, indices, indptr, n, mass): the stiffness S in CSR arrays and the diagonal of M.");
 
   // ---- spectral basis ----
@@ -492,7 +505,7 @@ PYBIND11_MODULE(_lapmesh, m)
                     "`lapmesh reconstruct`). It may hold a few more pairs than asked for (a whole last\n"
                     "eigenspace); values and vectors give all it holds.")
     .def(py::init([](const py::object& V, py::object F, std::optional<long long> k_arg, const std::string& laplacian,
-                     const std::string& area, const py::object& progress) {
+                     const std::string& area, double mollification, const py::object& progress) {
            // SpectralBasis(mesh, k): with a lapmesh.Mesh, the second positional argument is k.
            if(py::isinstance<Validated_mesh>(V) && !k_arg && py::isinstance<py::int_>(F)) {
              k_arg = F.cast<long long>();
@@ -509,6 +522,7 @@ PYBIND11_MODULE(_lapmesh, m)
              };
            s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
            s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+           s.mollification = mollification_arg(mollification);
            Mesh mesh = *mesh_arg(V, F);
            std::shared_ptr<const lapmesh::Spectral_basis> b;
            {
@@ -519,7 +533,8 @@ PYBIND11_MODULE(_lapmesh, m)
          }),
          py::arg("V"), py::arg("F") = py::none(), py::arg("k") = py::none(), py::kw_only(),
          py::arg("laplacian") = default_name(spectral_defaults.laplacian),
-         py::arg("area") = default_name(spectral_defaults.area), py::arg("progress") = py::none(),
+         py::arg("area") = default_name(spectral_defaults.area),
+         py::arg("mollification") = spectral_defaults.mollification, py::arg("progress") = py::none(),
          "Computes the k smallest eigenpairs (1 <= k <= number of vertices). progress, when given, is\n"
          "called as progress(stage, solves, attempt, seconds) while the solver runs; an exception it\n"
          "raises stops the computation and propagates.")
@@ -628,7 +643,7 @@ PYBIND11_MODULE(_lapmesh, m)
     "smooth",
     [](const py::object& V, const py::object& F, const std::string& scheme, const py::object& lam,
        const std::string& lambda_unit, long long iterations, const std::string& laplacian, const std::string& area,
-       bool fixed_operator, bool restore_volume, bool restore_area, bool fix_boundary, bool reuse_factorization,
+       double mollification, bool fixed_operator, bool restore_volume, bool restore_area, bool fix_boundary, bool reuse_factorization,
        const py::object& progress) {
       lapmesh_ops::Smooth_settings s;
       if(Callable f = callable(progress))
@@ -647,6 +662,7 @@ PYBIND11_MODULE(_lapmesh, m)
       s.iterations = iterations;
       s.laplacian = enum_arg<lapmesh::Laplacian>("laplacian", laplacian);
       s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+      s.mollification = mollification_arg(mollification);
       s.fixed_operator = fixed_operator;
       s.restore_volume = restore_volume;
       s.restore_area = restore_area;
@@ -679,7 +695,8 @@ PYBIND11_MODULE(_lapmesh, m)
     py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("scheme") = default_name(smooth_defaults.scheme),
     py::arg("lam") = "auto", py::arg("lambda_unit") = default_name(smooth_defaults.lambda.unit),
     py::arg("iterations") = smooth_defaults.iterations, py::arg("laplacian") = default_name(smooth_defaults.laplacian),
-    py::arg("area") = default_name(smooth_defaults.area), py::arg("fixed_operator") = smooth_defaults.fixed_operator,
+    py::arg("area") = default_name(smooth_defaults.area), py::arg("mollification") = smooth_defaults.mollification,
+    py::arg("fixed_operator") = smooth_defaults.fixed_operator,
     py::arg("restore_volume") = smooth_defaults.restore_volume,
     py::arg("restore_area") = smooth_defaults.restore_area, py::arg("fix_boundary") = smooth_defaults.fix_boundary,
     py::arg("reuse_factorization") = smooth_defaults.reuse_factorization, py::arg("progress") = py::none(),

@@ -210,3 +210,9 @@ def test_defects_of_real_meshes_take_the_intrinsic_laplacian(cow):
     assert off.min() >= -1e-12
     V2, _ = lapmesh.smooth(mesh, scheme="implicit", lam="auto", iterations=2, laplacian="intrinsic-delaunay")
     assert (V2[-1] == V[-1]).all() and np.isfinite(V2).all()
+    # The mollification margin is a keyword: 0 leaves the zero-area face's angles undefined.
+    c0 = lapmesh.curvatures(V, F, laplacian="intrinsic-delaunay", mollification=1e-3)
+    assert np.isfinite(c0.mean[:-1]).all()
+    with pytest.raises(lapmesh.ParameterError) as e:
+        lapmesh.curvatures(V, F, laplacian="intrinsic-delaunay", mollification=-1.0)
+    assert e.value.parameter == "mollification"
