@@ -111,6 +111,49 @@ TEST(IntrinsicDelaunay, WeightsBecomeNonNegativeAndEdgesDelaunay)
   });
 }
 
+// The stiffness is written column by column from the halfedges; here it is summed corner by
+// corner from triplets instead, on flipped triangulations with repeated edges and loops.
+TEST(IntrinsicDelaunay, ColumnAssemblyEqualsTheCornerByCornerSum)
+{
+  const std::vector<std::pair<std::string, lapmesh::Triangle_soup>> cases = {
+    {"jittered sphere", jittered(lapmesh::icosphere(3), 0.02, 7)},
+    {"jittered patch", lapmesh::plane_patch(12, 0.45, 3)},
+    {"sliver sphere", sliver_sphere(3)}};
+  for(const auto& [name, soup] : cases) {
+    const Mesh m = to_mesh(soup);
+    const auto mesh = lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values());
+    lapmesh::internal::Intrinsic_triangulation it(mesh.topology, mesh.positions);
+    ASSERT_GT(it.flip_to_delaunay().flips, 0) << name;
+    Eigen::SparseMatrix<double> S;
+    Eigen::VectorXd mass;
+    lapmesh::internal::assemble_intrinsic_pencil(it, lapmesh::Vertex_area::barycentric, S, mass);
+
+    using T = lapmesh::internal::Intrinsic_triangulation;
+    const int n = it.num_vertices();
+    std::vector<Eigen::Triplet<double>> entries;
+    Eigen::VectorXd expected_mass = Eigen::VectorXd::Zero(n);
+    for(int c = 0; c < 3 * it.num_faces(); ++c) {
+      expected_mass[it.triangles()[c]] += it.face_area(c / 3) / 3 / it.sheets();
+      const int h = T::halfedge_opposite(c);
+      const int i = it.triangles()[h], j = it.triangles()[T::next_of(h)];
+      const double w = 0.5 * it.corner_cotangent(c) / it.sheets();
+      entries.emplace_back(i, j, w);
+      entries.emplace_back(j, i, w);
+      entries.emplace_back(i, i, -w);
+      entries.emplace_back(j, j, -w);
+    }
+    Eigen::SparseMatrix<double> expected(n, n);
+    expected.setFromTriplets(entries.begin(), entries.end());
+    const double scale = expected.cwiseAbs().sum() / n;
+    EXPECT_LT((S - expected).cwiseAbs().sum(), 1e-13 * scale * n) << name;
+    EXPECT_LT((mass - expected_mass).cwiseAbs().maxCoeff(), 1e-15 * expected_mass.maxCoeff() * 10) << name;
+    EXPECT_TRUE(S.isCompressed()) << name;
+    for(int col = 0; col < n; ++col)  // rows strictly increasing within each column
+      for(int k = S.outerIndexPtr()[col] + 1; k < S.outerIndexPtr()[col + 1]; ++k)
+        EXPECT_LT(S.innerIndexPtr()[k - 1], S.innerIndexPtr()[k]) << name << " column " << col;
+  }
+}
+
 TEST(IntrinsicDelaunay, OnADelaunayMeshItIsTheCotangentLaplacian)
 {
   const Mesh m = to_mesh(lapmesh::icosphere(3));

@@ -102,6 +102,7 @@ public:
       }
     for(std::size_t e = 0; e + 1 < t.fan_begin.size(); ++e)
       glue_fan(P, &t.fan_corners[t.fan_begin[e]], &t.fan_corners[t.fan_begin[e + 1]]);
+    update_areas();
   }
 
   Index num_vertices() const { return m_num_vertices; }
@@ -135,25 +136,27 @@ public:
       const double slack = std::min({l[0] + l[1] - l[2], l[1] + l[2] - l[0], l[2] + l[0] - l[1]});
       epsilon = std::max(epsilon, delta - slack);
     }
-    if(epsilon > 0)
+    if(epsilon > 0) {
       for(double& l : m_length) l += epsilon;
+      update_areas();
+    }
     return std::max(epsilon, 0.0);
   }
 
   /// cot of the angle at corner c (from the lengths of its face).
-  double corner_cotangent(Index c) const
+  double corner_cotangent(Index c) const { return corner_cotangent(c, face_area(c / 3)); }
+
+  /// The same, given the area of c's face (one area for the three corners of a face).
+  double corner_cotangent(Index c, double area) const
   {
     const Index f = c / 3;
-    const double area = face_area(f);
     const double opposite = m_length[halfedge_opposite(c)];
     const double b = m_length[3 * f + (c % 3)], d = m_length[3 * f + (c % 3 + 2) % 3];  // the two sides at c
     return (b * b + d * d - opposite * opposite) / (4.0 * area);
   }
 
-  double face_area(Index f) const
-  {
-    return triangle_area_from_lengths(m_length[3 * f], m_length[3 * f + 1], m_length[3 * f + 2]);
-  }
+  /// The area of face f from its lengths (kept with them: the Delaunay test needs two per edge).
+  double face_area(Index f) const { return m_area[f]; }
 
   /// cot alpha + cot beta of the interior edge of halfedge h (alpha, beta the opposite angles).
   double cotangent_sum(Index h) const
@@ -167,9 +170,11 @@ public:
     Intrinsic_delaunay_stats stats;
     std::vector<Index> queue;
     std::vector<char> queued(m_tri.size(), 0);
+    // Only the edges that are not Delaunay now: a Delaunay edge can become non-Delaunay only
+    // when a neighbouring face changes, and every flip queues the four edges around it.
     for(Index h = 0; h < Index(m_tri.size()); ++h)
-      if(m_twin[h] > h) {
-        if(cotangent_sum(h) < -tolerance) ++stats.non_delaunay_before;
+      if(m_twin[h] > h && h / 3 != m_twin[h] / 3 && cotangent_sum(h) < -tolerance) {
+        ++stats.non_delaunay_before;
         queue.push_back(h);
         queued[h] = 1;
       }
@@ -216,6 +221,13 @@ public:
   static Index corner_opposite(Index h) { return prev_of(h); }
 
 private:
+  void update_areas()
+  {
+    m_area.resize(m_tri.size() / 3);
+    for(std::size_t f = 0; f < m_area.size(); ++f)
+      m_area[f] = triangle_area_from_lengths(m_length[3 * f], m_length[3 * f + 1], m_length[3 * f + 2]);
+  }
+
   /// The halfedge of the back copy of a front face that runs the other way along h's edge.
   Index back_of(Index h) const
   {
@@ -271,9 +283,9 @@ private:
                  l_db = m_length[gd];
     // Layout: a at the origin, b on the x axis, c above it, d below it.
     const double cx = (l_ab * l_ab + l_ca * l_ca - l_bc * l_bc) / (2 * l_ab);
-    const double cy = 2 * triangle_area_from_lengths(l_ab, l_bc, l_ca) / l_ab;
+    const double cy = 2 * m_area[f0] / l_ab;
     const double dx = (l_ab * l_ab + l_ad * l_ad - l_db * l_db) / (2 * l_ab);
-    const double dy = -2 * triangle_area_from_lengths(l_ab, l_db, l_ad) / l_ab;
+    const double dy = -2 * m_area[f1] / l_ab;
     const double l_cd = std::hypot(cx - dx, cy - dy);
     // f0 = (d, b, c): halfedges d->b, b->c, c->d; f1 = (c, a, d): c->a, a->d, d->c.
     const Index n0 = 3 * f0, n1 = 3 * f1;
@@ -300,6 +312,8 @@ private:
     m_length[n0 + 2] = m_length[n1 + 2] = l_cd;
     m_twin[n0 + 2] = n1 + 2;
     m_twin[n1 + 2] = n0 + 2;
+    m_area[f0] = triangle_area_from_lengths(l_db, l_bc, l_cd);
+    m_area[f1] = triangle_area_from_lengths(l_ca, l_ad, l_cd);
   }
 
   Index m_num_vertices;
@@ -307,6 +321,7 @@ private:
   std::vector<Index> m_tri;      // 3 vertices per face
   std::vector<Index> m_twin;     // per halfedge, -1 on the boundary
   std::vector<double> m_length;  // per halfedge (twins agree)
+  std::vector<double> m_area;    // per face, from its lengths
 };
 
 /// The intrinsic Delaunay triangulation of the positions P on the topology t, its lengths
@@ -323,6 +338,20 @@ inline Intrinsic_triangulation intrinsic_delaunay_triangulation(const Mesh_topol
   return it;
 }
 
+/// The cotangents and lumped area shares of the three corners of face f.
+inline void intrinsic_face_corners(const Intrinsic_triangulation& it, Vertex_area area, Index f, double cot[3],
+                                   double share[3])
+{
+  const double face_area = it.face_area(f);
+  double l2[3];
+  for(Index a = 0; a < 3; ++a) {
+    cot[a] = it.corner_cotangent(3 * f + a, face_area);
+    const double l = it.lengths()[Intrinsic_triangulation::halfedge_opposite(3 * f + a)];
+    l2[a] = l * l;  // the squared side opposite corner a
+  }
+  lumped_corner_areas(area, face_area, cot, l2, share);
+}
+
 /// The corner cotangents and corner areas of the first `faces` faces of an intrinsic
 /// triangulation (all by default), in its corner order: the mesh's own while no edge was
 /// flipped, the front sheet first in a tufted cover.
@@ -332,53 +361,99 @@ inline void intrinsic_corner_geometry(const Intrinsic_triangulation& it, Vertex_
   const Index m = faces < 0 ? it.num_faces() : faces;
   g.cot.resize(3 * std::size_t(m));
   g.corner_area.resize(3 * std::size_t(m));
-  const std::vector<double>& len = it.lengths();
   for_each_index(m, parallel, [&](Index f) {
-    double l2[3];
-    for(Index a = 0; a < 3; ++a) {
-      g.cot[3 * f + a] = it.corner_cotangent(3 * f + a);
-      const double l = len[Intrinsic_triangulation::halfedge_opposite(3 * f + a)];
-      l2[a] = l * l;  // the squared side opposite corner a
-    }
-    lumped_corner_areas(area, it.face_area(f), &g.cot[3 * std::size_t(f)], l2, &g.corner_area[3 * std::size_t(f)]);
+    intrinsic_face_corners(it, area, f, &g.cot[3 * std::size_t(f)], &g.corner_area[3 * std::size_t(f)]);
   });
 }
 
 /// The cotangent stiffness and the lumped mass of an intrinsic triangulation, per sheet (a
 /// tufted cover's are halved). The pattern is that of its edges, which after flips may join
 /// vertices that share no mesh edge; two intrinsic edges between the same vertices add up.
+/// Written in compressed columns directly: column i holds one entry per halfedge leaving i
+/// (the weight of its edge, from the corners opposite it and its twin) and the diagonal.
 inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_area area,
                                       Eigen::SparseMatrix<double>& stiffness, Eigen::VectorXd& mass)
 {
-  const Index n = it.num_vertices(), m = it.num_faces();
+  using T = Intrinsic_triangulation;
+  const Index n = it.num_vertices();
   const std::vector<Index>& tri = it.triangles();
-  std::vector<Eigen::Triplet<double, Index>> entries;
-  entries.reserve(6 * std::size_t(m) + std::size_t(n));
-  Eigen::VectorXd diagonal = Eigen::VectorXd::Zero(n);
-  mass = Eigen::VectorXd::Zero(n);
-  Corner_geometry g;
-  intrinsic_corner_geometry(it, area, false, g);
+  const std::vector<Index>& twin = it.twins();
+  const Index halfedges = Index(tri.size());
   const double per_sheet = 1.0 / it.sheets();
-  for(Index f = 0; f < m; ++f) {
-    const double* cot = &g.cot[3 * std::size_t(f)];
-    for(Index a = 0; a < 3; ++a) {
-      const Index c = 3 * f + a;
-      mass[tri[c]] += per_sheet * g.corner_area[c];
-      // The halfedge opposite corner a gets half of its cotangent.
-      const Index h = Intrinsic_triangulation::halfedge_opposite(c);
-      const Index i = tri[h], j = tri[Intrinsic_triangulation::next_of(h)];
-      if(i == j) continue;  // a loop edge joins a vertex to itself: no term in L x
-      const double w = 0.5 * per_sheet * cot[a];
-      entries.emplace_back(i, j, w);
-      entries.emplace_back(j, i, w);
-      diagonal[i] -= w;
-      diagonal[j] -= w;
+  std::vector<double> cot(tri.size());
+  mass = Eigen::VectorXd::Zero(n);
+  for(Index f = 0; f < it.num_faces(); ++f) {
+    double share[3];
+    intrinsic_face_corners(it, area, f, &cot[3 * std::size_t(f)], share);
+    for(Index a = 0; a < 3; ++a) mass[tri[3 * f + a]] += per_sheet * share[a];
+  }
+
+  // A loop edge joins a vertex to itself: no term in L x. An edge without a twin (none in a
+  // closed cover, kept for safety) is entered in both of its columns from its one halfedge.
+  std::vector<Index> start(std::size_t(n) + 1, 1);  // the diagonal of every column
+  start[0] = 0;
+  for(Index h = 0; h < halfedges; ++h) {
+    const Index i = tri[h], j = tri[T::next_of(h)];
+    if(i == j) continue;
+    ++start[i + 1];
+    if(twin[h] < 0) ++start[j + 1];
+  }
+  for(Index i = 0; i < n; ++i) start[i + 1] += start[i];
+  stiffness.resize(n, n);
+  stiffness.resizeNonZeros(start[n]);
+  Index* row = stiffness.innerIndexPtr();
+  double* value = stiffness.valuePtr();
+  std::vector<Index> fill(start.begin(), start.end() - 1);
+  for(Index i = 0; i < n; ++i) {
+    row[fill[i]] = i;
+    value[fill[i]++] = 0;
+  }
+  for(Index h = 0; h < halfedges; ++h) {
+    const Index i = tri[h], j = tri[T::next_of(h)];
+    if(i == j) continue;
+    const double w = 0.5 * per_sheet *
+                     (cot[T::corner_opposite(h)] + (twin[h] >= 0 ? cot[T::corner_opposite(twin[h])] : 0.0));
+    row[fill[i]] = j;
+    value[fill[i]++] = w;
+    if(twin[h] < 0) {
+      row[fill[j]] = i;
+      value[fill[j]++] = w;
     }
   }
-  for(Index i = 0; i < n; ++i) entries.emplace_back(i, i, diagonal[i]);
-  stiffness.resize(n, n);
-  stiffness.setFromTriplets(entries.begin(), entries.end());
-  stiffness.makeCompressed();
+  // Sort each column by row (insertion sort: columns are short), merge repeated rows, set the
+  // diagonal to minus the column's off-diagonal sum, and pack the columns to the front.
+  Index* outer = stiffness.outerIndexPtr();
+  Index out = 0;
+  for(Index i = 0; i < n; ++i) {
+    const Index first = start[i], last = start[i + 1];
+    for(Index k = first + 1; k < last; ++k) {
+      const Index r = row[k];
+      const double v = value[k];
+      Index q = k;
+      for(; q > first && row[q - 1] > r; --q) {
+        row[q] = row[q - 1];
+        value[q] = value[q - 1];
+      }
+      row[q] = r;
+      value[q] = v;
+    }
+    outer[i] = out;
+    double off_diagonal = 0;
+    Index diagonal = -1;
+    for(Index k = first; k < last; ++k) {
+      if(row[k] != i) off_diagonal += value[k];
+      if(out > outer[i] && row[out - 1] == row[k]) {
+        value[out - 1] += value[k];
+      } else {
+        if(row[k] == i) diagonal = out;
+        row[out] = row[k];
+        value[out++] = value[k];
+      }
+    }
+    value[diagonal] = -off_diagonal;
+  }
+  outer[n] = out;
+  stiffness.resizeNonZeros(out);
 }
 
 /// The sum of the corner angles at each vertex (the cone angle, which flips do not change),
