@@ -35,6 +35,7 @@ struct Study_options
   long long iterations = 20;
   std::uint64_t seed = 1;
   double hausdorff_spacing = 1.0;
+  double mollification = lapmesh::default_mollification_factor;
   double progress_interval = 5.0;  // seconds between progress lines when stderr is not a terminal
   bool restore_volume = false, fixed_operator = false, quiet = false, progress = false, no_progress = false;
 };
@@ -305,6 +306,7 @@ void run(const Study_options& o)
   s.restore_volume = o.restore_volume;
   s.fixed_operator = o.fixed_operator;
   s.hausdorff_spacing = o.hausdorff_spacing;
+  s.mollification = o.mollification;
   or_fail(o.input, [&] { lapmesh_ops::check(s); });
   check_output_path(o.output, {"csv"});
   if(!o.plot.empty()) check_output_path(o.plot, {"svg"});
@@ -392,6 +394,7 @@ void register_denoise_study(CLI::App& app)
   add_enum_option<lapmesh::Noise_direction>(*cmd, "--direction", o->direction,
                                             "noise direction: " + lapmesh::name_list<lapmesh::Noise_direction>());
   add_area_option(*cmd, o->area);
+  add_mollification_option(*cmd, o->mollification);
   cmd->add_flag("--restore-volume", o->restore_volume, "restore the enclosed volume after each step (closed meshes)");
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the noisy mesh for all iterations");
   cmd->add_option("--hausdorff-spacing", o->hausdorff_spacing, "Hausdorff sampling grid spacing, in mean edge lengths")

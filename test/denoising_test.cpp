@@ -236,6 +236,39 @@ TEST(Denoising, StudyRecordsEveryIterationAndFindsAFiniteBestLambda)
   }
 }
 
+// The study's mollification reaches the intrinsic Delaunay operator: a record equals a separate
+// run with the same mollification_factor, and another factor gives another record.
+TEST(Denoising, StudyPassesItsMollificationToTheIntrinsicOperator)
+{
+  const Mesh clean = to_mesh(lapmesh::icosphere(2));
+  lapmesh::Denoising_study_settings s;
+  s.noise_levels = {0.1};
+  s.schemes = {lapmesh::Smoothing_scheme::implicit_euler};
+  s.laplacians = {lapmesh::Laplacian::intrinsic_delaunay};
+  s.time_steps = {1.0};
+  s.iterations = 2;
+  s.seed = 5;
+  auto rms_after = [&](double mollification) {
+    s.mollification = mollification;
+    for(const auto& r : lapmesh::run_denoising_study(clean, s).records)
+      if(r.iteration == 2) return r.deviation.rms_distance;
+    return std::nan("");
+  };
+  Mesh noisy = clean;
+  lapmesh::add_noise(noisy, 0.1, LP::noise_direction(lapmesh::Noise_direction::isotropic).random_seed(5));
+  const double lambda = lapmesh::scale_free_time_step(noisy, 1.0);
+  const double strong = 0.9;  // above the least triangle-inequality slack of the noisy sphere
+  lapmesh::smooth_laplacian_implicit(
+    noisy, lambda,
+    LP::mollification_factor(strong, LP::laplacian(lapmesh::Laplacian::intrinsic_delaunay).number_of_iterations(2)));
+  const double direct = lapmesh::mesh_deviation(clean, noisy).rms_distance;
+  const double with_strong = rms_after(strong), with_default = rms_after(lapmesh::default_mollification_factor);
+  EXPECT_NEAR(with_strong, direct, 1e-12);
+  EXPECT_GT(std::abs(with_strong - with_default), 1e-6) << "the factor must change the operator";
+  s.mollification = -1;
+  EXPECT_THROW(lapmesh::run_denoising_study(clean, s), lapmesh::Parameter_error);
+}
+
 TEST(Denoising, StudyRejectsBadSettings)
 {
   const Mesh clean = to_mesh(lapmesh::icosphere(1));

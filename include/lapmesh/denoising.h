@@ -220,6 +220,9 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
     throw std::invalid_argument("the study needs at least one noise level, scheme, Laplacian and time step");
   if(s.restore_volume && t.num_boundary_edges != 0)
     throw Parameter_error("restore_volume", "volume restoration needs a closed mesh");
+  if(!(s.mollification >= 0) || !std::isfinite(s.mollification))
+    throw Parameter_error("mollification", "must be a finite number >= 0 (got " + std::to_string(s.mollification) + ")",
+                          "1e-5");
 
   Deviation_meter meter(t, clean, s.hausdorff_spacing);
   Denoising_study study;
@@ -241,7 +244,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
         std::string bound_error;
         try {
           Laplacian_pencil pencil;
-          assemble_pencil(t, noisy, lap, s.area, false, pencil);
+          assemble_pencil(t, noisy, lap, s.area, false, pencil, s.mollification);
           require_positive_mass(lap, pencil.mass, s.area);
           bound = explicit_stability_bound(pencil, free_mask, false);
         } catch(const std::exception& e) {
@@ -266,6 +269,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           settings.scheme = scheme;
           settings.laplacian = lap;
           settings.area = s.area;
+          settings.mollification = s.mollification;
           settings.lambda = base.lambda;
           settings.iterations = s.iterations;
           settings.fixed_operator = s.fixed_operator;

@@ -265,6 +265,7 @@ struct Denoising_study_settings
   Noise_direction noise_direction = Noise_direction::isotropic;  ///< isotropic or along the normals
   Noise_scale noise_scale = Noise_scale::mean_edge_length;        ///< what the level multiplies
   Vertex_area area = Vertex_area::barycentric;                    ///< vertex area of the operators
+  double mollification = default_mollification_factor;  ///< intrinsic Delaunay only (mollification_factor)
   bool restore_volume = false;  ///< closed meshes only
   bool fixed_operator = false;  ///< keep the noisy mesh's operator for all iterations
   double hausdorff_spacing = 1.0;  ///< in mean edge lengths of the clean mesh

@@ -136,6 +136,7 @@ def denoise_study(
     seed: int = ...,
     direction: str = ...,
     area: str = ...,
+    mollification: float = ...,
     restore_volume: bool = ...,
     fixed_operator: bool = ...,
     hausdorff_spacing: float = ...,

@@ -720,8 +720,8 @@ PYBIND11_MODULE(_lapmesh, m)
     [](const py::object& V, const py::object& F, const std::vector<double>& levels,
        const std::vector<std::string>& schemes, const std::vector<std::string>& laplacians,
        const std::vector<double>& lambdas, const std::string& lambda_unit, int iterations, std::uint64_t seed,
-       const std::string& direction, const std::string& area, bool restore_volume, bool fixed_operator,
-       double hausdorff_spacing) {
+       const std::string& direction, const std::string& area, double mollification, bool restore_volume,
+       bool fixed_operator, double hausdorff_spacing) {
       lapmesh::Denoising_study_settings s;
       auto numbers = [](const char* name, const std::vector<double>& values, bool allow_zero) {
         if(values.empty()) throw lapmesh::Parameter_error(name, "the list is empty");
@@ -748,6 +748,7 @@ PYBIND11_MODULE(_lapmesh, m)
       s.seed = seed;
       s.noise_direction = enum_arg<lapmesh::Noise_direction>("direction", direction);
       s.area = enum_arg<lapmesh::Vertex_area>("area", area);
+      s.mollification = mollification_arg(mollification);
       s.restore_volume = restore_volume;
       s.fixed_operator = fixed_operator;
       s.hausdorff_spacing = hausdorff_spacing;
@@ -798,7 +799,8 @@ PYBIND11_MODULE(_lapmesh, m)
     py::arg("lambdas") = study_defaults.time_steps, py::arg("lambda_unit") = default_name(study_defaults.unit),
     py::arg("iterations") = study_defaults.iterations, py::arg("seed") = study_defaults.seed,
     py::arg("direction") = default_name(study_defaults.noise_direction),
-    py::arg("area") = default_name(study_defaults.area), py::arg("restore_volume") = study_defaults.restore_volume,
+    py::arg("area") = default_name(study_defaults.area), py::arg("mollification") = study_defaults.mollification,
+    py::arg("restore_volume") = study_defaults.restore_volume,
     py::arg("fixed_operator") = study_defaults.fixed_operator,
     py::arg("hausdorff_spacing") = study_defaults.hausdorff_spacing,
     "The denoising study (as `lapmesh denoise-study`): noise at each level, then every scheme,\n"

@@ -216,3 +216,10 @@ def test_defects_of_real_meshes_take_the_intrinsic_laplacian(cow):
     with pytest.raises(lapmesh.ParameterError) as e:
         lapmesh.curvatures(V, F, laplacian="intrinsic-delaunay", mollification=-1.0)
     assert e.value.parameter == "mollification"
+    study = dict(levels=[0.05], schemes=["implicit"], laplacians=["intrinsic-delaunay"], lambdas=[1.0],
+                 iterations=1)
+    rms = [lapmesh.denoise_study(V, F, mollification=m, **study)["rms_distance"][-1] for m in (1e-5, 0.05)]
+    assert np.isfinite(rms).all() and abs(rms[0] - rms[1]) > 1e-9
+    with pytest.raises(lapmesh.ParameterError) as e:
+        lapmesh.denoise_study(V, F, mollification=2.0, **study)
+    assert e.value.parameter == "mollification"
