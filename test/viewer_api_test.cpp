@@ -551,3 +551,76 @@ TEST_F(ViewerApi, LongOperationsReportProgressDoNotBlockAndCanBeCancelled)
 }
 
 } // namespace
+
+// A file with defects the reader keeps: the viewer serves its notes (as the command line prints
+// them) and takes the intrinsic Delaunay operator's mollification factor.
+TEST(ViewerDefects, NotesAreServedAndMollificationReachesTheOperator)
+{
+  const fs::path dir = lapmesh_test::scratch_dir();
+  lapmesh::Triangle_soup soup = lapmesh::icosphere(2);
+  const auto first = soup.triangles.front();
+  soup.points[std::size_t(first[1])] = soup.points[std::size_t(first[0])];  // collapses an edge: zero-area faces
+  soup.points.push_back({5.0, 5.0, 5.0});                                   // a vertex in no face
+  const fs::path path = dir / "defects.off";
+  {
+    std::ofstream out(path);
+    out.precision(17);
+    out << "OFF\n" << soup.points.size() << ' ' << soup.triangles.size() << " 0\n";
+    for(const auto& p : soup.points) out << p[0] << ' ' << p[1] << ' ' << p[2] << '\n';
+    for(const auto& t : soup.triangles) out << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+  }
+  lapmesh_viewer::Server_options o;
+  o.assets_dir = dir.string();
+  lapmesh_viewer::Server server(lapmesh_viewer::default_mesh_sources({path.string()}, ""), o);
+  const int port = server.start();
+  httplib::Client c("127.0.0.1", port);
+  c.set_read_timeout(120, 0);
+
+  const auto geometry = c.Get("/api/meshes/defects/geometry");
+  ASSERT_TRUE(geometry);
+  ASSERT_EQ(geometry->status, 200) << geometry->body;
+  const json notes = decode(geometry->body).header["notes"];
+  const std::string all = notes.dump();
+  EXPECT_NE(all.find("zero-area face(s)"), std::string::npos) << all;
+  EXPECT_NE(all.find("1 vertex(es) in no face"), std::string::npos) << all;
+  const auto meshes = c.Get("/api/meshes");
+  ASSERT_TRUE(meshes);
+  EXPECT_EQ(json::parse(meshes->body)["meshes"][0]["notes"], notes);
+
+  auto mean_curvature = [&](double mollification) {
+    const auto r = c.Post("/api/meshes/defects/curvature",
+                          json{{"laplacian", "intrinsic-delaunay"}, {"mollification", mollification}}.dump(),
+                          "application/json");
+    EXPECT_TRUE(r && r->status == 200) << (r ? r->body : "no answer");
+    const auto s = c.Get("/api/meshes/defects/scalars?quantity=mean");
+    return decode(s->body).buffer<double>("values");
+  };
+  const std::vector<double> weak = mean_curvature(1e-5), strong = mean_curvature(0.01);
+  ASSERT_EQ(weak.size(), soup.points.size());
+  EXPECT_TRUE(std::isnan(weak.back()));  // the vertex in no face
+  double largest_change = 0;
+  for(std::size_t i = 0; i + 1 < weak.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(weak[i]) && std::isfinite(strong[i])) << i;
+    largest_change = std::max(largest_change, std::abs(weak[i] - strong[i]));
+  }
+  EXPECT_GT(largest_change, 1e-6) << "the factor must change the operator";
+  // The basis cache tells intrinsic Delaunay operators of different mollification apart.
+  auto reconstruct = [&](double mollification) {
+    EXPECT_TRUE(c.Post("/api/meshes/defects/reset", "{}", "application/json"));
+    const auto r = c.Post("/api/meshes/defects/reconstruct",
+                          json{{"k", 10}, {"laplacian", "intrinsic-delaunay"}, {"mollification", mollification}}.dump(),
+                          "application/json");
+    EXPECT_TRUE(r && r->status == 200) << (r ? r->body : "no answer");
+    return r ? json::parse(r->body)["basis_cached"].get<bool>() : false;
+  };
+  EXPECT_FALSE(reconstruct(1e-5));
+  EXPECT_TRUE(reconstruct(1e-5));
+  EXPECT_FALSE(reconstruct(0.01));
+  EXPECT_TRUE(reconstruct(0.01));
+
+  const auto refused = c.Post("/api/meshes/defects/curvature",
+                              json{{"laplacian", "intrinsic-delaunay"}, {"mollification", 2}}.dump(), "application/json");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 400);
+  EXPECT_NE(refused->body.find("mollification"), std::string::npos) << refused->body;
+}

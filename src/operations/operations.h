@@ -148,11 +148,14 @@ class Basis_cache
 public:
   explicit Basis_cache(std::size_t budget_bytes) : m_budget(budget_bytes) {}
 
+  /// A basis of this geometry and operator (the mollification counts for intrinsic Delaunay
+  /// only) with at least k pairs, or nullptr.
   std::shared_ptr<const lapmesh::Spectral_basis> find(const std::string& mesh, long long geometry,
                                                       lapmesh::Laplacian laplacian, lapmesh::Vertex_area area,
-                                                      long long k);
+                                                      double mollification, long long k);
   /// Replaces the basis of the same key; a basis larger than the budget is not kept.
-  void insert(const std::string& mesh, long long geometry, std::shared_ptr<const lapmesh::Spectral_basis> basis);
+  void insert(const std::string& mesh, long long geometry, double mollification,
+              std::shared_ptr<const lapmesh::Spectral_basis> basis);
   /// Drops the bases of `mesh` on geometries other than `keep_a` and `keep_b`.
   void forget(const std::string& mesh, long long keep_a, long long keep_b);
 
@@ -171,8 +174,14 @@ private:
     long long geometry;
     lapmesh::Laplacian laplacian;
     lapmesh::Vertex_area area;
+    double mollification;
     std::shared_ptr<const lapmesh::Spectral_basis> basis;
     std::size_t bytes;
+
+    bool same_operator(lapmesh::Laplacian l, lapmesh::Vertex_area a, double m) const
+    {
+      return laplacian == l && area == a && (l != lapmesh::Laplacian::intrinsic_delaunay || mollification == m);
+    }
   };
   std::mutex m_mutex;
   std::list<Entry> m_lru;  // most recently used first

@@ -60,11 +60,11 @@ void check_basis_fits(const lapmesh::Spectral_basis& basis, const Mesh& mesh, st
 
 std::shared_ptr<const lapmesh::Spectral_basis> Basis_cache::find(const std::string& mesh, long long geometry,
                                                                  lapmesh::Laplacian laplacian, lapmesh::Vertex_area area,
-                                                                 long long k)
+                                                                 double mollification, long long k)
 {
   std::lock_guard<std::mutex> g(m_mutex);
   for(auto it = m_lru.begin(); it != m_lru.end(); ++it) {
-    if(it->mesh == mesh && it->geometry == geometry && it->laplacian == laplacian && it->area == area &&
+    if(it->mesh == mesh && it->geometry == geometry && it->same_operator(laplacian, area, mollification) &&
        it->basis->size() >= k) {
       m_lru.splice(m_lru.begin(), m_lru, it);
       return m_lru.front().basis;
@@ -73,13 +73,14 @@ std::shared_ptr<const lapmesh::Spectral_basis> Basis_cache::find(const std::stri
   return nullptr;
 }
 
-void Basis_cache::insert(const std::string& mesh, long long geometry, std::shared_ptr<const lapmesh::Spectral_basis> basis)
+void Basis_cache::insert(const std::string& mesh, long long geometry, double mollification,
+                         std::shared_ptr<const lapmesh::Spectral_basis> basis)
 {
   const std::size_t bytes = bytes_of(*basis);
   std::lock_guard<std::mutex> g(m_mutex);
   m_lru.remove_if([&](const Entry& e) {
-    const bool same = e.mesh == mesh && e.geometry == geometry && e.laplacian == basis->laplacian() &&
-                      e.area == basis->vertex_area();
+    const bool same = e.mesh == mesh && e.geometry == geometry &&
+                      e.same_operator(basis->laplacian(), basis->vertex_area(), mollification);
     if(same) m_bytes -= e.bytes;
     return same;
   });
@@ -88,7 +89,7 @@ void Basis_cache::insert(const std::string& mesh, long long geometry, std::share
     m_bytes -= m_lru.back().bytes;
     m_lru.pop_back();
   }
-  m_lru.push_front({mesh, geometry, basis->laplacian(), basis->vertex_area(), basis, bytes});
+  m_lru.push_front({mesh, geometry, basis->laplacian(), basis->vertex_area(), mollification, basis, bytes});
   m_bytes += bytes;
 }
 
@@ -163,11 +164,11 @@ Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& setting
 Reconstruction reconstruct(const Mesh& mesh, const Reconstruct_settings& settings, Basis_cache& cache,
                            const Basis_key& key)
 {
-  auto basis = cache.find(key.mesh, key.geometry, settings.laplacian, settings.area, settings.k);
+  auto basis = cache.find(key.mesh, key.geometry, settings.laplacian, settings.area, settings.mollification, settings.k);
   const bool cached = basis != nullptr;
   Reconstruction out = reconstruct_with(mesh, settings, std::move(basis), false);
   out.basis_from_cache = cached;
-  if(!cached) cache.insert(key.mesh, key.geometry, out.basis);
+  if(!cached) cache.insert(key.mesh, key.geometry, settings.mollification, out.basis);
   return out;
 }
 

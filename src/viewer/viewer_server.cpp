@@ -122,6 +122,7 @@ struct Mesh_state
   std::atomic<bool> loaded{false};
   Busy_lock lock;              // guards everything up to the progress block once loaded
   Mesh original, current;
+  std::vector<std::string> notes;  // what the reader found and kept (zero-area faces, ...)
   std::vector<std::array<std::size_t, 3>> triangles;
   long long version = 0;       // bumped at every change of the geometry (and by reset)
   long long geometry = 0;      // which geometry `current` is: 0 as loaded, else unique to one change
@@ -340,10 +341,16 @@ struct Server::Impl
     std::lock_guard<std::mutex> g(s.load_mutex);
     if(s.loaded) return;
     Mesh mesh;
+    std::vector<std::string> notes;
     const Mesh_source& src = s.source;
     try {
       switch(src.kind) {
-        case Mesh_source::Kind::file: mesh = lapmesh_ops::load_mesh(src.path).mesh; break;
+        case Mesh_source::Kind::file: {
+          lapmesh_ops::Loaded_mesh loaded = lapmesh_ops::load_mesh(src.path);
+          mesh = std::move(loaded.mesh);
+          notes = std::move(loaded.notes);
+          break;
+        }
         case Mesh_source::Kind::icosphere: lapmesh::make_mesh(lapmesh::icosphere(4, 1.0), mesh); break;
         case Mesh_source::Kind::torus: lapmesh::make_mesh(lapmesh::torus(96, 48, 1.0, 0.4), mesh); break;
         case Mesh_source::Kind::bumpy_sphere: lapmesh::make_mesh(lapmesh::bumpy_sphere(5), mesh); break;
@@ -356,6 +363,7 @@ struct Server::Impl
                               std::to_string(options.max_vertices));
     s.original = mesh;
     s.current = std::move(mesh);
+    s.notes = std::move(notes);
     s.triangles = lapmesh_ops::triangles(s.current);
     s.version = 1;
     s.geometry = 0;
@@ -408,11 +416,18 @@ struct Server::Impl
     return json::object();
   }
 
+  /// The intrinsic Delaunay operator's mollification factor, as the command line's range.
+  static double mollification(Params& p)
+  {
+    return p.number("mollification", lapmesh::default_mollification_factor, 0.0, 1.0);
+  }
+
   json op_curvature(Mesh_state& s, Params& p)
   {
     lapmesh_ops::Curvature_settings settings;
     settings.laplacian = p.option("laplacian", settings.laplacian);
     settings.area = p.option("area", settings.area);
+    settings.mollification = mollification(p);
     p.finish();
     s.set_stage("curvature");
     const lapmesh::Vertex_curvatures c = lapmesh_ops::curvature(s.current, settings);
@@ -433,6 +448,7 @@ struct Server::Impl
     settings.k = p.integer("k", std::nullopt, 1, std::min<long long>(n, options.max_k));
     settings.laplacian = p.option("laplacian", settings.laplacian);
     settings.area = p.option("area", settings.area);
+    settings.mollification = mollification(p);
     p.finish();
     s.set_stage("eigenpairs");  // shown only while the basis is computed (a cached one is immediate)
     settings.progress = [&s](const lapmesh::Spectral_progress& pr) {
@@ -466,6 +482,7 @@ struct Server::Impl
     settings.iterations = p.integer("iterations", 1, 1, options.max_iterations);
     settings.laplacian = p.option("laplacian", settings.laplacian);
     settings.area = p.option("area", settings.area);
+    settings.mollification = mollification(p);
     settings.fixed_operator = p.boolean("fixed_operator", false);
     settings.restore_volume = p.boolean("restore_volume", false);
     settings.restore_area = p.boolean("restore_area", false);
@@ -519,6 +536,7 @@ struct Server::Impl
       Busy_guard l(s.lock, false);
       j["vertices"] = lapmesh_ops::vertex_count(s.current);
       j["faces"] = num_faces(s.current);
+      j["notes"] = s.notes;
     }
     return j;
   }
@@ -600,6 +618,7 @@ struct Server::Impl
     f.header()["id"] = s.source.id;
     f.header()["vertices"] = P.rows();
     f.header()["faces"] = s.triangles.size();
+    f.header()["notes"] = s.notes;
     f.header()["version"] = s.version;
     f.header()["scalars"] = json::array();
     for(const auto& kv : s.scalars) f.header()["scalars"].push_back(kv.first);

@@ -318,6 +318,12 @@ async function loadGeometry(keepCamera) {
   if (state.mesh !== mesh) return;  // a stale answer
   state.geometry = { header: f.header, positions: f.buffers.positions, indices: f.buffers.indices };
   $('mesh-info').textContent = `${f.header.vertices} vertices, ${f.header.faces} faces`;
+  // What the reader found and kept (zero-area faces, non-manifold edges, ...): one line each.
+  $('mesh-notes').replaceChildren(...(f.header.notes || []).map((n) => {
+    const li = document.createElement('li');
+    li.textContent = `note: ${n}`;
+    return li;
+  }));
   $('rec-k').max = f.header.vertices;
   setGeometry(f, keepCamera);
   setQuantities(f.header.scalars);
@@ -403,13 +409,16 @@ function intOrText(v) { return /^-?\d+$/.test(v.trim()) ? Number(v) : v; }
 function numOrText(v) { const x = Number(v); return v.trim() !== '' && Number.isFinite(x) ? x : v; }
 
 const operations = {
-  curvature: () => ({ laplacian: $('curv-laplacian').value, area: $('curv-area').value }),
-  reconstruct: () => ({ k: intOrText($('rec-k').value), laplacian: $('rec-laplacian').value, area: $('rec-area').value }),
+  curvature: () => ({ laplacian: $('curv-laplacian').value, area: $('curv-area').value,
+    mollification: numOrText($('curv-mollification').value) }),
+  reconstruct: () => ({ k: intOrText($('rec-k').value), laplacian: $('rec-laplacian').value, area: $('rec-area').value,
+    mollification: numOrText($('rec-mollification').value) }),
   smooth: () => {
     const lam = $('sm-lambda').value.trim();
     return {
       scheme: $('sm-scheme').value, lambda: lam === 'auto' ? 'auto' : numOrText(lam), lambda_unit: $('sm-unit').value,
       iterations: intOrText($('sm-iterations').value), laplacian: $('sm-laplacian').value, area: $('sm-area').value,
+      mollification: numOrText($('sm-mollification').value),
       fixed_operator: $('sm-fixed').checked, restore_volume: $('sm-restore').checked,
       restore_area: $('sm-restore-area').checked, fix_boundary: !$('sm-free-boundary').checked,
     };
@@ -502,6 +511,7 @@ $('download-ply').addEventListener('click', () => download('ply'));
 const urlParams = new URLSearchParams(window.location.search);
 const fieldOf = {
   laplacian: ['curv-laplacian', 'rec-laplacian', 'sm-laplacian'], area: ['curv-area', 'rec-area', 'sm-area'], k: ['rec-k'],
+  mollification: ['curv-mollification', 'rec-mollification', 'sm-mollification'],
   scheme: ['sm-scheme'], lambda: ['sm-lambda'], lambda_unit: ['sm-unit'], iterations: ['sm-iterations'],
   level: ['noise-level'], seed: ['noise-seed'], scale: ['noise-scale'], direction: ['noise-direction'],
   colormap: ['colormap'], range: ['range-mode'], clip: ['clip'], min: ['range-min'], max: ['range-max'], shading: ['shading'],
