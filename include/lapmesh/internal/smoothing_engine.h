@@ -280,7 +280,7 @@ private:
     }
   }
 
-    void remember_pattern()
+  void remember_pattern()
   {
     const auto& S = m_pencil.stiffness;
     m_pattern_outer.assign(S.outerIndexPtr(), S.outerIndexPtr() + S.outerSize() + 1);
