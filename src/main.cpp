@@ -2,6 +2,7 @@
 // Every failure is one line on stderr and a non-zero exit: 2 for a usage error, 1 for bad
 // input or a failed computation.
 #include "cli_common.h"
+#include "huge_pages.h"
 
 #include <lapmesh/errors.h>
 
@@ -9,6 +10,7 @@
 
 int main(int argc, char** argv)
 {
+  lapmesh_cli::restart_with_huge_pages_if_useful(argc, argv);
   CLI::App app{"lapmesh: Laplacian geometry processing on triangle meshes "
                "(curvature, spectrum, reconstruction, smoothing, noise)"};
   app.set_version_flag("--version", "lapmesh 0.1.0");
