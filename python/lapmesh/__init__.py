@@ -66,8 +66,8 @@ def describe(kind):
 
 def laplacian_arrays(V, F=None, **options):
     """The Laplacian pencil without scipy: (data, indices, indptr, n, mass), the stiffness S
-    in CSR arrays (n x n, symmetric, negative semidefinite) and the diagonal of the mass M.
-    Options as laplacian()."""
+    in CSR arrays (n x n, symmetric, negative semidefinite; indices and indptr int32, the
+    assembly's own arrays, not copies) and the diagonal of the mass M. Options as laplacian()."""
     return _lapmesh._laplacian_csr(V, F, **options)
 
 

@@ -8,6 +8,7 @@ import numpy.typing as npt
 ArrayLike = npt.ArrayLike
 Float64 = npt.NDArray[np.float64]
 Int64 = npt.NDArray[np.int64]
+Int32 = npt.NDArray[np.int32]
 
 class LapmeshWarning(UserWarning): ...
 
@@ -69,7 +70,7 @@ def laplacian(
 ) -> Tuple[Any, Float64]: ...
 def laplacian_arrays(
     V: MeshLike, F: Optional[ArrayLike] = ..., *, laplacian: str = ..., area: str = ..., mollification: float = ...
-) -> Tuple[Float64, Int64, Int64, int, Float64]: ...
+) -> Tuple[Float64, Int32, Int32, int, Float64]: ...
 
 class SpectralBasis:
     def __init__(

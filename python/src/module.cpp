@@ -21,6 +21,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -89,6 +90,19 @@ py::array matrix_array(Eigen::MatrixXd A)  // column-major: a Fortran-ordered nu
 {
   const py::ssize_t r = A.rows(), c = A.cols();
   return owning_array(std::move(A), {r, c}, {py::ssize_t(sizeof(double)), py::ssize_t(r * sizeof(double))});
+}
+
+// The arrays of a compressed symmetric matrix as CSR arrays, without a copy: its values, indices
+// and starts (int32, as Eigen stores them) share one owner, the matrix moved to the heap.
+std::tuple<py::array, py::array, py::array> csr_arrays(Eigen::SparseMatrix<double> S)
+{
+  using StorageIndex = Eigen::SparseMatrix<double>::StorageIndex;
+  auto* held = new Eigen::SparseMatrix<double>(std::move(S));
+  py::capsule owner(held, [](void* p) { delete static_cast<Eigen::SparseMatrix<double>*>(p); });
+  const py::ssize_t n = held->rows(), nnz = held->nonZeros();
+  return {py::array_t<double>({nnz}, {py::ssize_t(sizeof(double))}, held->valuePtr(), owner),
+          py::array_t<StorageIndex>({nnz}, {py::ssize_t(sizeof(StorageIndex))}, held->innerIndexPtr(), owner),
+          py::array_t<StorageIndex>({n + 1}, {py::ssize_t(sizeof(StorageIndex))}, held->outerIndexPtr(), owner)};
 }
 
 py::array_t<std::int64_t> faces_array(const lapmesh_ops::Triangles& tris)
@@ -486,18 +500,14 @@ PYBIND11_MODULE(_lapmesh, m)
         py::gil_scoped_release release;
         L = lapmesh_ops::laplacian(mesh, s);
       }
-      const auto& S = L.stiffness;
-      const py::ssize_t n = S.rows(), nnz = S.nonZeros();
-      py::array_t<double> data(nnz);
-      py::array_t<std::int64_t> indices(nnz), indptr(n + 1);
-      std::copy(S.valuePtr(), S.valuePtr() + nnz, data.mutable_data());
-      std::copy(S.innerIndexPtr(), S.innerIndexPtr() + nnz, indices.mutable_data());
-      std::copy(S.outerIndexPtr(), S.outerIndexPtr() + n + 1, indptr.mutable_data());
+      const py::ssize_t n = L.stiffness.rows();
+      auto [data, indices, indptr] = csr_arrays(std::move(L.stiffness));
       return py::make_tuple(data, indices, indptr, n, vector_array(std::move(L.mass)));
     },
     py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),
     py::arg("area") = default_name(curvature_defaults.area), py::arg("mollification") = curvature_defaults.mollification,
-    "(data, indices, indptr, n, mass): the stiffness S in CSR arrays and the diagonal of M.");
+    "(data, indices, indptr, n, mass): the stiffness S in CSR arrays (indices and indptr int32, the\n"
+    "assembly's own arrays: not copied) and the diagonal of M.");
 
   // ---- spectral basis ----
   py::class_<Basis>(m, "SpectralBasis",

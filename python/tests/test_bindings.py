@@ -231,6 +231,11 @@ def test_laplacian_matrix(mesh):
     same(data, S.data)
     same(mass, M)
     assert n2 == n
+    # the assembly's own arrays, not copies: int32 indices, owned by the matrix they came from
+    assert indices.dtype == np.int32 and indptr.dtype == np.int32 and data.dtype == np.float64
+    assert not data.flags.owndata and not indices.flags.owndata and not indptr.flags.owndata
+    assert (indices == S.indices).all() and (indptr == S.indptr).all()
+    assert abs(S - S.T).max() == 0
 
 
 def test_names_are_the_cli_choices(cli):

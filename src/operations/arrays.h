@@ -10,11 +10,12 @@
 
 namespace lapmesh_ops {
 
-/// The pencil (S, M) of a Laplacian, S in compressed rows (scipy's CSR layout).
+/// The pencil (S, M) of a Laplacian. S is symmetric, so its compressed columns, as assembled,
+/// are also its compressed rows (scipy's CSR layout): no transposition is needed.
 struct Csr_laplacian
 {
-  Eigen::SparseMatrix<double, Eigen::RowMajor> stiffness;  ///< S, symmetric, negative semidefinite
-  Eigen::VectorXd mass;                                    ///< the diagonal of M
+  Eigen::SparseMatrix<double> stiffness;  ///< S, symmetric, negative semidefinite, compressed
+  Eigen::VectorXd mass;                   ///< the diagonal of M
 };
 
 /// Assembles (S, M) for the Laplacian and vertex area of `settings`.

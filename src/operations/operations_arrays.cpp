@@ -17,7 +17,7 @@ Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings)
                                      LP::vertex_area(settings.area, LP::laplacian(settings.laplacian, np))));
   });
   Csr_laplacian out;
-  out.stiffness = pencil.stiffness;  // the assembly's pattern is symmetric: only the storage order changes
+  out.stiffness = std::move(pencil.stiffness);
   out.stiffness.makeCompressed();
   out.mass = std::move(pencil.mass);
   return out;
