@@ -390,6 +390,29 @@ TEST(IntrinsicDelaunay, FacesStoredApartAndWeldedGiveTheMeshsOperators)
   const auto cb = lapmesh::vertex_curvatures(apart, LP::laplacian(Laplacian::intrinsic_delaunay).vertex_index_map(weld));
   EXPECT_LT((ca.mean - cb.mean).cwiseAbs().maxCoeff(), 1e-10 * ca.mean.cwiseAbs().maxCoeff());
   EXPECT_LT((ca.gaussian - cb.gaussian).cwiseAbs().maxCoeff(), 1e-10 * ca.gaussian.cwiseAbs().maxCoeff());
+
+  // A constraint on one copy of a welded vertex holds the vertex: only the last copy of vertex 0
+  // is marked, and every copy stays, as vertex 0 of the whole mesh does when it is marked.
+  Mesh::Vertex_index last_copy_of_0;
+  for(auto v : vertices(apart))
+    if(weld[v] == 0) last_copy_of_0 = v;
+  auto fixed_apart = apart.add_property_map<Mesh::Vertex_index, bool>("v:fixed", false).first;
+  fixed_apart[last_copy_of_0] = true;
+  Mesh whole_smoothed = whole;
+  auto fixed_whole = whole_smoothed.add_property_map<Mesh::Vertex_index, bool>("v:fixed", false).first;
+  fixed_whole[*vertices(whole_smoothed).begin()] = true;
+  const double lambda = 0.01;
+  lapmesh::smooth_laplacian_implicit(whole_smoothed, lambda,
+                                     CGAL::parameters::vertex_is_constrained_map(fixed_whole).number_of_iterations(2));
+  lapmesh::smooth_laplacian_implicit(
+    apart, lambda,
+    CGAL::parameters::vertex_is_constrained_map(fixed_apart).vertex_index_map(weld).number_of_iterations(2));
+  const auto origin = whole.point(*vertices(whole).begin());
+  for(auto v : vertices(apart)) {
+    const auto expected = whole_smoothed.point(Mesh::Vertex_index(weld[v]));
+    EXPECT_LT(CGAL::squared_distance(apart.point(v), expected), 1e-20) << "copy " << v << " of " << weld[v];
+    if(weld[v] == 0) EXPECT_EQ(apart.point(v), origin);
+  }
 }
 
 TEST(IntrinsicDelaunay, VerticesInNoFaceFollowThePolicy)

@@ -75,14 +75,17 @@ struct has_factor<Solver, std::void_t<decltype(std::declval<Solver&>().factor(
   : std::true_type
 {};
 
-/// `vertex_is_constrained_map` read into one flag per vertex (all 0 without the map).
-template <typename VertexRange, typename NamedParameters>
-std::vector<char> constrained_vertices(const VertexRange& vertices, const NamedParameters& np)
+/// `vertex_is_constrained_map` read into one flag per topology vertex (all 0 without the map):
+/// a vertex welded from several copies is constrained when any copy is.
+template <typename ExtractedMesh, typename NamedParameters>
+std::vector<char> constrained_vertices(const ExtractedMesh& mesh, const NamedParameters& np)
 {
-  std::vector<char> fixed(vertices.size(), 0);
+  std::vector<char> fixed(mesh.vertices.size(), 0);
   if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_is_constrained_t>::value) {
     auto vcm = CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_is_constrained);
-    for(std::size_t i = 0; i < vertices.size(); ++i) fixed[i] = get(vcm, vertices[i]) ? 1 : 0;
+    mesh.for_each_vertex([&](auto v, Index i) {
+      if(get(vcm, v)) fixed[std::size_t(i)] = 1;
+    });
   }
   return fixed;
 }
@@ -147,7 +150,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   }
 
   const internal::Positions before = mesh.positions;
-  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh.vertices, np), s);
+  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s);
 
   // Write back only what moved: fixed vertices keep their exact kernel coordinates.
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
@@ -241,7 +244,7 @@ double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& n
   const bool fix_boundary =
     CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::fix_boundary), true);
   const std::vector<char> free_mask =
-    internal::free_vertex_mask(mesh.topology, fix_boundary, internal::constrained_vertices(mesh.vertices, np));
+    internal::free_vertex_mask(mesh.topology, fix_boundary, internal::constrained_vertices(mesh, np));
   return internal::explicit_stability_bound(pencil, free_mask, false);
 }
 
