@@ -152,11 +152,8 @@ auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_
 template <typename Tag, typename NamedParameters, typename VertexRows, typename Values>
 void write_if_given(const NamedParameters& np, Tag tag, const VertexRows& vertex_rows, const Values& values)
 {
-  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, Tag>::value) {
-    auto map = CGAL::parameters::get_parameter(np, tag);
-    using Value = typename boost::property_traits<decltype(map)>::value_type;
-    for(const auto& [v, r] : vertex_rows) put(map, v, static_cast<Value>(values[r]));
-  }
+  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, Tag>::value)
+    write_row_values(vertex_rows, values, CGAL::parameters::get_parameter(np, tag));
 }
 
 } // namespace internal
@@ -235,9 +232,7 @@ void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curv
                             const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto [vertices, c] = internal::curvatures_of<ConcurrencyTag>(tm, np, false);
-  for(const auto& [v, r] : vertices)
-    put(mean_curvature_map, v,
-        static_cast<typename boost::property_traits<VertexCurvatureMap>::value_type>(c.mean[r]));
+  internal::write_row_values(vertices, c.mean, mean_curvature_map);
 }
 
 /// @brief writes the angle-deficit Gaussian curvature K into `gaussian_curvature_map`.

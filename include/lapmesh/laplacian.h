@@ -99,7 +99,7 @@ void compute_vertex_areas(const TriangleMesh& tm, VertexAreaMap area_map,
                           const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto mesh = internal::extract_mesh(tm, np);
-  internal::write_row_values(mesh,
+  internal::write_row_values(mesh.vertex_rows,
                              mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions,
                                                                  internal::choose_vertex_area(np),
                                                                  internal::is_parallel<ConcurrencyTag>()),

@@ -251,12 +251,13 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   return out;
 }
 
-/// Writes per-row values into a vertex property map, for every vertex of an extraction.
-template <typename Extracted, typename Values, typename PropertyMap>
-void write_row_values(const Extracted& mesh, const Values& values, PropertyMap map)
+/// Writes per-row values into a vertex property map, for every (vertex, row) pair of an
+/// extraction's `vertex_rows`.
+template <typename VertexRows, typename Values, typename PropertyMap>
+void write_row_values(const VertexRows& vertex_rows, const Values& values, PropertyMap map)
 {
   using Value = typename boost::property_traits<PropertyMap>::value_type;
-  for(const auto& [v, r] : mesh.vertex_rows) put(map, v, static_cast<Value>(values[r]));
+  for(const auto& [v, r] : vertex_rows) put(map, v, static_cast<Value>(values[r]));
 }
 
 } // namespace internal
