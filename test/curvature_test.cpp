@@ -236,6 +236,33 @@ TEST(Curvature, PropertyMapApiWritesTheSameValuesOnSurfaceMeshAndPolyhedron)
   for(auto v : vertices(poly)) EXPECT_NEAR(gauss[v], arrays.gaussian[Eigen::Index(i++)], 1e-12 * arrays.gaussian.cwiseAbs().maxCoeff());
 }
 
+// compute_gaussian_curvature() skips the Laplacian, the normals and k1, k2: it must still give
+// vertex_curvatures()'s K bitwise, boundary and vertices in no face included.
+TEST(Curvature, GaussianAloneIsBitwiseTheFullComputations)
+{
+  lapmesh::Triangle_soup soup = lapmesh::plane_patch(9, 0.3, 5);
+  for(auto& p : soup.points) p[2] = 0.3 * p[0] * p[0] - 0.2 * p[1] * p[1];  // a saddle with a boundary
+  Mesh m = to_mesh(soup);
+  m.add_vertex(Point(4, 4, 4));  // in no face: NaN
+  for(lapmesh::Laplacian kind :
+       {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform, lapmesh::Laplacian::intrinsic_delaunay})
+    for(Vertex_area area : {Vertex_area::barycentric, Vertex_area::mixed}) {
+      const auto np = LP::vertex_area(area, LP::laplacian(kind));
+      const auto full = lapmesh::vertex_curvatures(m, np);
+      auto K = m.add_property_map<Mesh::Vertex_index, double>("v:K_alone").first;
+      lapmesh::compute_gaussian_curvature(m, K, np);
+      for(auto v : vertices(m)) {
+        const double expected = full.gaussian[v.idx()];
+        if(std::isnan(expected))
+          EXPECT_TRUE(std::isnan(K[v])) << v;
+        else
+          EXPECT_EQ(K[v], expected) << lapmesh::to_string(kind) << " " << lapmesh::to_string(area) << " " << v;
+      }
+      EXPECT_TRUE(std::isnan(K[Mesh::Vertex_index(num_vertices(m) - 1)]));
+      m.remove_property_map(K);
+    }
+}
+
 TEST(Curvature, ParallelEqualsSequentialBitwise)
 {
   const Mesh m = to_mesh(lapmesh::bumpy_sphere(5));

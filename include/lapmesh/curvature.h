@@ -87,6 +87,15 @@ inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, co
   return out;
 }
 
+inline void require_positive_vertex_areas(const Eigen::VectorXd& areas, Vertex_area area)
+{
+  for(Index v = 0; v < Index(areas.size()); ++v)
+    if(!(areas[v] > 0))
+      throw Mesh_error("vertex " + std::to_string(v) + " has a non-positive " + to_string(area) +
+                         " area, so its curvature is undefined: use the mixed or barycentric area",
+                       Mesh_error::Element::vertex, v);
+}
+
 /// All curvatures from the flat arrays; `with_gaussian` = false skips the angles.
 inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
                                             Vertex_area area, bool with_gaussian, bool parallel,
@@ -101,12 +110,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   Vertex_curvatures out;
   out.area = gather_corner_sums(t, g.corner_area, parallel);
   out.normal = gather_vertex_normals(t, g, parallel);
-  if(laplacian == Laplacian::cotangent || with_gaussian)
-    for(Index v = 0; v < t.num_vertices; ++v)
-      if(!(out.area[v] > 0))
-        throw Mesh_error("vertex " + std::to_string(v) + " has a non-positive " + to_string(area) +
-                           " area, so its curvature is undefined: use the mixed or barycentric area",
-                         Mesh_error::Element::vertex, v);
+  if(laplacian == Laplacian::cotangent || with_gaussian) require_positive_vertex_areas(out.area, area);
 
   if(laplacian == Laplacian::cotangent) {
     out.laplacian = cotangent_laplacian_sums(t, g, P, parallel);
@@ -126,6 +130,26 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
 
   set_gaussian_and_principal(t, gather_corner_sums(t, g.angle, parallel), parallel, out);
   return out;
+}
+
+/// K alone, as compute_curvatures() computes it (bitwise), without the Laplacian of the
+/// positions, the normals and the principal curvatures: the angle sums and the vertex areas.
+inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
+                                                       Vertex_area area, bool parallel, double mollification)
+{
+  if(laplacian == Laplacian::intrinsic_delaunay)  // its mass comes with its stiffness
+    return compute_intrinsic_curvatures(t, P, area, true, parallel, mollification).gaussian;
+  require_manifold(t, to_string(laplacian));
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, true, false}, parallel, g);
+  const Eigen::VectorXd areas = gather_corner_sums(t, g.corner_area, parallel);
+  require_positive_vertex_areas(areas, area);
+  const Eigen::VectorXd angle_sum = gather_corner_sums(t, g.angle, parallel);
+  Eigen::VectorXd K(t.num_vertices);
+  for_each_index(t.num_vertices, parallel, [&](Index v) {
+    K[v] = ((t.on_boundary[v] ? M_PI : 2.0 * M_PI) - angle_sum[v]) / areas[v];
+  });
+  return K;
 }
 
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
@@ -244,7 +268,12 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gaussian_curvature_map,
                                 const NamedParameters& np = CGAL::parameters::default_values())
 {
-  compute_vertex_curvatures<ConcurrencyTag>(tm, parameters::vertex_gaussian_curvature_map(gaussian_curvature_map, np));
+  const auto mesh = internal::extract_mesh(tm, np);
+  const Eigen::VectorXd K = internal::compute_gaussian_curvature_only(
+    mesh.topology, mesh.positions, internal::choose_laplacian(np), internal::choose_vertex_area(np),
+    internal::is_parallel<ConcurrencyTag>(), internal::choose_mollification(np));
+  internal::write_row_values(mesh.vertex_rows, mesh.to_rows(K, std::numeric_limits<double>::quiet_NaN()),
+                             gaussian_curvature_map);
 }
 
 /// @brief writes the principal curvatures k1 >= k2 into the two maps.

@@ -127,6 +127,13 @@ void BM_mean_curvature_only(benchmark::State& state)
   for(auto _ : state) lapmesh::compute_mean_curvature(m, H, LP::vertex_area(lapmesh::Vertex_area::mixed));
 }
 
+void BM_gaussian_curvature_only(benchmark::State& state)
+{
+  Mesh m = torus_mesh(int(state.range(0)));
+  auto K = m.add_property_map<Mesh::Vertex_index, double>("v:K").first;
+  for(auto _ : state) lapmesh::compute_gaussian_curvature(m, K, LP::vertex_area(lapmesh::Vertex_area::mixed));
+}
+
 void BM_extract_and_topology(benchmark::State& state)
 {
   const Mesh& m = torus_mesh(int(state.range(0)));
@@ -145,6 +152,7 @@ BENCHMARK(BM_uniform_laplacian)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Sequential_tag)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Parallel_if_available_tag)->Apply(sizes);
 BENCHMARK(BM_mean_curvature_only)->Apply(sizes);
+BENCHMARK(BM_gaussian_curvature_only)->Apply(sizes);
 BENCHMARK(BM_cotangent_vs_intrinsic)
   ->ArgsProduct({{316, 1000}, {0, 1, 2}, {0, 1}})
   ->ArgNames({"n", "mesh", "intrinsic"})
