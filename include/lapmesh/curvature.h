@@ -33,6 +33,12 @@ inline double mean_curvature_sign(const Eigen::Vector3d& Lx, const Eigen::Vector
   return Lx.dot(n) > 1e-10 * Lx.norm() ? -1.0 : 1.0;
 }
 
+/// The Gaussian curvature density of vertex v: its angle deficit over its area.
+inline double gaussian_curvature_at(const Mesh_topology& t, Index v, double angle_sum, double area)
+{
+  return ((t.on_boundary[v] ? M_PI : 2.0 * M_PI) - angle_sum) / area;
+}
+
 /// K from the angle sums and the areas in `out`, then k1, k2 from K and the mean curvature.
 inline void set_gaussian_and_principal(const Mesh_topology& t, const Eigen::VectorXd& angle_sum, bool parallel,
                                        Vertex_curvatures& out)
@@ -42,8 +48,7 @@ inline void set_gaussian_and_principal(const Mesh_topology& t, const Eigen::Vect
   out.k1.resize(n);
   out.k2.resize(n);
   for_each_index(n, parallel, [&](Index v) {
-    const double full = t.on_boundary[v] ? M_PI : 2.0 * M_PI;
-    const double K = (full - angle_sum[v]) / out.area[v], H = out.mean[v];
+    const double K = gaussian_curvature_at(t, v, angle_sum[v], out.area[v]), H = out.mean[v];
     const double root = std::sqrt(std::max(H * H - K, 0.0));
     out.gaussian[v] = K;
     out.k1[v] = H + root;
@@ -146,9 +151,7 @@ inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, c
   require_positive_vertex_areas(areas, area);
   const Eigen::VectorXd angle_sum = gather_corner_sums(t, g.angle, parallel);
   Eigen::VectorXd K(t.num_vertices);
-  for_each_index(t.num_vertices, parallel, [&](Index v) {
-    K[v] = ((t.on_boundary[v] ? M_PI : 2.0 * M_PI) - angle_sum[v]) / areas[v];
-  });
+  for_each_index(t.num_vertices, parallel, [&](Index v) { K[v] = gaussian_curvature_at(t, v, angle_sum[v], areas[v]); });
   return K;
 }
 

@@ -220,9 +220,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
     throw std::invalid_argument("the study needs at least one noise level, scheme, Laplacian and time step");
   if(s.restore_volume && t.num_boundary_edges != 0)
     throw Parameter_error("restore_volume", "volume restoration needs a closed mesh");
-  if(!(s.mollification >= 0) || !std::isfinite(s.mollification))
-    throw Parameter_error("mollification", "must be a finite number >= 0 (got " + std::to_string(s.mollification) + ")",
-                          "1e-5");
+  checked_mollification(s.mollification, "mollification");
 
   Deviation_meter meter(t, clean, s.hausdorff_spacing);
   Denoising_study study;

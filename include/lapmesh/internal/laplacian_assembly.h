@@ -95,16 +95,22 @@ Laplacian choose_laplacian(const NamedParameters& np)
   return CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::laplacian),
                                             Laplacian::cotangent);
 }
-/// The mollification factor of the named parameters; Parameter_error unless finite and >= 0.
+/// `factor` if it is a valid mollification factor (finite and >= 0); else Parameter_error
+/// naming `parameter`, the setting as its caller calls it.
+inline double checked_mollification(double factor, const char* parameter)
+{
+  if(!(factor >= 0) || !std::isfinite(factor))
+    throw Parameter_error(parameter, "must be a finite number >= 0 (got " + std::to_string(factor) + ")", "1e-5");
+  return factor;
+}
+/// The mollification factor of the named parameters, checked.
 template <typename NamedParameters>
 double choose_mollification(const NamedParameters& np)
 {
-  const double factor = CGAL::parameters::choose_parameter(
-    CGAL::parameters::get_parameter(np, internal_np::mollification_factor), default_mollification_factor);
-  if(!(factor >= 0) || !std::isfinite(factor))
-    throw Parameter_error("mollification_factor", "must be a finite number >= 0 (got " + std::to_string(factor) + ")",
-                          "1e-5");
-  return factor;
+  return checked_mollification(CGAL::parameters::choose_parameter(
+                                 CGAL::parameters::get_parameter(np, internal_np::mollification_factor),
+                                 default_mollification_factor),
+                               "mollification_factor");
 }
 template <typename NamedParameters>
 Vertex_area choose_vertex_area(const NamedParameters& np)
