@@ -178,6 +178,69 @@ TEST(Spectral, CompletenessOnHighlySymmetricSphere)
   EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, P), b.size());
 }
 
+#ifdef LAPMESH_HAS_CHOLMOD
+TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
+{
+  // Without pivoting, L D L^T of a matrix in a given order is unique: the supernodal
+  // factorisation must give the simplicial one's pivots, on meshes whose supernodes range from
+  // one column to large dense separators, at shifts from below the spectrum to far inside it.
+  Mesh elephant;
+  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  for(const Mesh& m : {to_mesh(lapmesh::icosphere(4, 1.0)), to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
+    const auto pencil = lapmesh::laplacian_pencil(m);
+    const Eigen::SparseMatrix<double> mS = -pencil.stiffness;
+    Eigen::SparseMatrix<double> K = mS;
+    K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
+    lapmesh::internal::Cholmod_supernodal_llt llt;
+    llt.compute(K);
+    ASSERT_EQ(llt.info(), Eigen::Success);
+    lapmesh::internal::Supernodal_ldlt ldlt(*llt.factor());
+    const Eigen::SparseMatrix<double> lower = ldlt.permuted_lower(mS);
+    const double lambda_scale = 1.0 / pencil.mass.sum();
+    for(double tau : {-1e-2 * lambda_scale, 30 * lambda_scale, 400 * lambda_scale, 3000 * lambda_scale}) {
+      ASSERT_TRUE(ldlt.factorize(lower, pencil.mass, tau)) << tau;
+      Eigen::SparseMatrix<double> shifted = mS;
+      shifted.diagonal() -= tau * pencil.mass;
+      Eigen::SparseMatrix<double> permuted(shifted.rows(), shifted.cols());
+      permuted.selfadjointView<Eigen::Lower>() = shifted.selfadjointView<Eigen::Lower>().twistedBy(ldlt.permutation());
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> simplicial(permuted);
+      ASSERT_EQ(simplicial.info(), Eigen::Success);
+      const Eigen::VectorXd& d = simplicial.vectorD();
+      EXPECT_LT((ldlt.pivots() - d).cwiseAbs().maxCoeff(), 1e-9 * d.cwiseAbs().maxCoeff()) << tau;
+      EXPECT_EQ(ldlt.negative_pivots(), (d.array() < 0).count()) << tau;
+      // Its solve: residual of a random right-hand side.
+      const Eigen::VectorXd rhs = Eigen::VectorXd::Random(mS.rows());
+      const Eigen::VectorXd x = ldlt.solve(rhs);
+      EXPECT_LT((shifted.selfadjointView<Eigen::Lower>() * x - rhs).norm(), 1e-8 * rhs.norm() * (1 + x.norm())) << tau;
+      if(tau < 0) EXPECT_EQ(ldlt.negative_pivots(), 0);
+      if(tau > 100 * lambda_scale) EXPECT_GT(ldlt.negative_pivots(), 5);
+    }
+  }
+  // The structure of an analysis alone serves as well.
+  {
+    const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(40, 30, 1.0, 0.3)));
+    const Eigen::SparseMatrix<double> mS = -pencil.stiffness;
+    lapmesh::internal::Cholmod_supernodal_llt analysis;
+    analysis.analyzePattern(mS);
+    ASSERT_NE(analysis.factor(), nullptr);
+    lapmesh::internal::Supernodal_ldlt ldlt(*analysis.factor());
+    const double tau = 200.0 / pencil.mass.sum();
+    ASSERT_TRUE(ldlt.factorize(ldlt.permuted_lower(mS), pencil.mass, tau));
+    EXPECT_EQ(ldlt.negative_pivots(),
+              lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, ldlt.permutation()));
+  }
+  // A zero pivot is refused: every diagonal entry shifted to zero.
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(2, 1.0)));
+  const Eigen::SparseMatrix<double> mS = -pencil.stiffness;
+  Eigen::SparseMatrix<double> K = mS;
+  K.diagonal() += pencil.mass;
+  lapmesh::internal::Cholmod_supernodal_llt llt;
+  llt.compute(K);
+  lapmesh::internal::Supernodal_ldlt ldlt(*llt.factor());
+  EXPECT_FALSE(ldlt.factorize(ldlt.permuted_lower(mS), Eigen::VectorXd(mS.diagonal()), 1.0));
+}
+#endif
+
 TEST(Spectral, BandedAgreesWithSingleRun)
 {
   Mesh m;

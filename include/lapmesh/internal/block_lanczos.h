@@ -22,6 +22,7 @@
 #define LAPMESH_INTERNAL_BLOCK_LANCZOS_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/dense_products.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -39,46 +40,6 @@
 
 namespace lapmesh {
 namespace internal {
-
-#ifdef LAPMESH_HAS_BLAS
-// Fortran BLAS (every BLAS has it; the trailing lengths are gfortran's hidden string arguments).
-extern "C" void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k,
-                       const double* alpha, const double* a, const int* lda, const double* b, const int* ldb,
-                       const double* beta, double* c, const int* ldc, std::size_t, std::size_t);
-#endif
-
-/// C = alpha op(A) B + beta C with op(A) = A or A^T, on column-major blocks (any outer stride).
-/// With LAPMESH_HAS_BLAS the BLAS library's dgemm does it: these products of a tall basis with a
-/// thin block are memory bound, and an optimised BLAS (OpenBLAS, run-time dispatched to the
-/// CPU's vector width) streams the basis faster than Eigen compiled for generic x86-64. Without
-/// it, Eigen in row panels that stay in cache (Eigen's product would otherwise copy the whole
-/// tall operand into its packed format first).
-inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eigen::MatrixXd>& A,
-                      const Eigen::Ref<const Eigen::MatrixXd>& B, double beta, Eigen::Ref<Eigen::MatrixXd> C)
-{
-  const Eigen::Index m = transpose_a ? A.cols() : A.rows(), k = transpose_a ? A.rows() : A.cols();
-  if(m == 0 || B.cols() == 0) return;
-#ifdef LAPMESH_HAS_BLAS
-  const int im = int(m), in = int(B.cols()), ik = int(k), lda = int(std::max<Eigen::Index>(1, A.outerStride())),
-            ldb = int(std::max<Eigen::Index>(1, B.outerStride())), ldc = int(std::max<Eigen::Index>(1, C.outerStride()));
-  dgemm_(transpose_a ? "T" : "N", "N", &im, &in, &ik, &alpha, A.data(), &lda, B.data(), &ldb, &beta, C.data(), &ldc, 1, 1);
-#else
-  if(beta == 0.0)
-    C.setZero();  // as in BLAS: C's old content is not read (it may be uninitialised, even NaN)
-  else if(beta != 1.0)
-    C *= beta;
-  if(k == 0) return;
-  const Eigen::Index tall = A.rows();
-  const Eigen::Index panel = std::max<Eigen::Index>(64, (Eigen::Index(1) << 16) / std::max<Eigen::Index>(1, A.cols()));
-  for(Eigen::Index r = 0; r < tall; r += panel) {
-    const Eigen::Index h = std::min(panel, tall - r);
-    if(transpose_a)
-      C.noalias() += alpha * (A.middleRows(r, h).transpose() * B.middleRows(r, h));
-    else
-      C.middleRows(r, h).noalias() += alpha * (A.middleRows(r, h) * B);
-  }
-#endif
-}
 
 /// C = V^T W for a tall V and a thin W.
 inline void panel_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& W,
@@ -101,6 +62,20 @@ inline void panel_product_nn(const Eigen::Ref<const Eigen::MatrixXd>& V, const E
 {
   Y.resize(V.rows(), Z.cols());
   tall_gemm(false, 1.0, V, Z, 0.0, Y);
+}
+
+/// V[:, 0:Z.cols()] = V[:, 0:used] Z, in row panels that stay in cache: a thick restart needs
+/// no second tall matrix (on a large mesh its fresh pages cost more than the product).
+inline void rotate_in_place(Eigen::MatrixXd& V, Eigen::Index used, const Eigen::Ref<const Eigen::MatrixXd>& Z,
+                            Eigen::MatrixXd& panel)
+{
+  const Eigen::Index rows = V.rows(), height = 1024;
+  panel.resize(std::min(height, rows), Z.cols());
+  for(Eigen::Index r = 0; r < rows; r += height) {
+    const Eigen::Index h = std::min(height, rows - r);
+    tall_gemm(false, 1.0, V.block(r, 0, h, used), Z, 0.0, panel.topRows(h));
+    V.block(r, 0, h, Z.cols()) = panel.topRows(h);
+  }
 }
 
 struct Block_lanczos_options
@@ -210,7 +185,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
     V.leftCols(b) = W;
   }
   Index processed = 0, filled = b, restart_start = 0;
-  MatrixXd X, W, C, R;
+  MatrixXd X, W, C, R, Cg, kept, next;
   for(int restart = 0;; ++restart) {
     while(filled <= m_max) {
       const Index cur = processed;
@@ -225,7 +200,6 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       const Index local = filled - lo;
       panel_product_tn(V.middleCols(lo, local), W, C);
       panel_subtract_product(V.middleCols(lo, local), C, W);
-      MatrixXd Cg;
       panel_product_tn(V.leftCols(filled), W, Cg);
       panel_subtract_product(V.leftCols(filled), Cg, W);
       Cg.middleRows(lo, local) += C;
@@ -279,10 +253,8 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         // Keep the wanted Ritz vectors and a third of the rest: the rest speeds up convergence of
         // the last wanted ones; the new room lets the Krylov space grow again.
         const Index keep = std::min(processed - b, std::max(nev, nev + (processed - nev) / 3));
-        MatrixXd kept;
-        panel_product_nn(V.leftCols(processed), Z.leftCols(keep), kept);
-        const MatrixXd next = V.middleCols(processed, b);
-        V.leftCols(keep) = kept;
+        next = V.middleCols(processed, b);
+        rotate_in_place(V, processed, Z.leftCols(keep), kept);
         V.middleCols(keep, b) = next;
         T.setZero();
         T.topLeftCorner(keep, keep).diagonal() = theta.head(keep);

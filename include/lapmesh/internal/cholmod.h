@@ -26,6 +26,8 @@
 
 #include <dlfcn.h>
 
+#include <cstddef>
+
 #include <string>
 
 namespace lapmesh {
@@ -141,12 +143,50 @@ public:
     factorize(A);
     return *this;
   }
+  /// Y = D K^-1 D X for a diagonal D = diag(scale) (the shift-invert operator of a standardised
+  /// pencil). CHOLMOD's solve allocates its result and work space at every call and permutes
+  /// blocks of more than a few columns slowly; here the rows are gathered, scaled, into a buffer
+  /// kept between calls, and the two supernodal triangular solves run in place on it.
+  void scaled_solve(const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) const
+  {
+    const Eigen::Index n = X.rows(), nrhs = X.cols();
+    const int* perm = permutation();
+    m_rhs.resize(n, nrhs);
+    for(Eigen::Index j = 0; j < nrhs; ++j)
+      for(Eigen::Index i = 0; i < n; ++i) m_rhs(i, j) = scale[perm[i]] * X(perm[i], j);
+    m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), nrhs);
+    cholmod_dense rhs = dense_view(m_rhs), work = dense_view(m_work);
+    cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
+    cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common);
+    cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
+    Y.resize(n, nrhs);
+    for(Eigen::Index j = 0; j < nrhs; ++j)
+      for(Eigen::Index i = 0; i < n; ++i) Y(perm[i], j) = scale[perm[i]] * m_rhs(i, j);
+  }
+
+  /// CHOLMOD's factor (its supernodal structure and ordering; nullptr before analyzePattern).
+  const cholmod_factor* factor() const { return m_cholmodFactor; }
   /// The fill-reducing ordering: row i of the factor is row perm[i] of the matrix (nullptr
   /// before analyzePattern).
   const int* permutation() const
   {
     return m_cholmodFactor ? static_cast<const int*>(m_cholmodFactor->Perm) : nullptr;
   }
+
+private:
+  static cholmod_dense dense_view(Eigen::MatrixXd& M)
+  {
+    cholmod_dense d{};
+    d.nrow = std::size_t(M.rows());
+    d.ncol = std::size_t(M.cols());
+    d.nzmax = std::size_t(M.size());
+    d.d = std::size_t(M.rows());
+    d.x = M.data();
+    d.xtype = CHOLMOD_REAL;
+    d.dtype = CHOLMOD_DOUBLE;
+    return d;
+  }
+  mutable Eigen::MatrixXd m_rhs, m_work;  // scaled_solve()'s buffers
 };
 
 } // namespace internal

@@ -43,6 +43,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <lapmesh/internal/cholmod.h>
+#include <lapmesh/internal/supernodal_ldlt.h>
 
 #include <Spectra/SymEigsShiftSolver.h>
 
@@ -51,6 +52,7 @@
 #include <cmath>
 #include <functional>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -211,25 +213,22 @@ private:
 
 /// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
 /// permutation: the completeness check factorises a matrix of the same pattern with it, which
-/// spares a second AMD ordering, whose cost grows with the mesh.
+/// spares a second ordering, whose cost grows with the mesh.
 using Fill_permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
 inline Fill_permutation fill_permutation(const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>& f)
 {
   return f.permutationP();
 }
-#ifdef LAPMESH_HAS_CHOLMOD
-inline Fill_permutation fill_permutation(const Cholmod_supernodal_llt& f)
+
+inline void throw_inertia_failure(double tau)
 {
-  // CHOLMOD: row i of the factor is row Perm[i] of K; Eigen: P maps old index to new.
-  const Eigen::Index n = f.rows();
-  Fill_permutation P(n);
-  for(Eigen::Index i = 0; i < n; ++i) P.indices()[f.permutation()[i]] = int(i);
-  return P;
+  throw Numerical_error("spectral completeness check: the LDL^T factorisation of -S - tau M failed (tau = " +
+                        std::to_string(tau) + ")");
 }
-#endif
 
 /// Number of eigenvalues of -S phi = lambda M phi strictly below tau (Sylvester's inertia): the
-/// negative pivots of the LDL^T factorisation of P (-S - tau M) P^T, P a fill-reducing ordering.
+/// negative pivots of the simplicial LDL^T factorisation of P (-S - tau M) P^T, P a
+/// fill-reducing ordering.
 inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
                                             double tau, const Fill_permutation& P)
 {
@@ -238,11 +237,50 @@ inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& m
   Eigen::SparseMatrix<double> Kp(K.rows(), K.cols());
   Kp.selfadjointView<Eigen::Lower>() = K.selfadjointView<Eigen::Lower>().twistedBy(P);
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(Kp);
-  if(ldlt.info() != Eigen::Success)
-    throw Numerical_error("spectral completeness check: the LDL^T factorisation of -S - tau M failed (tau = " +
-                          std::to_string(tau) + ")");
+  if(ldlt.info() != Eigen::Success) throw_inertia_failure(tau);
   return (ldlt.vectorD().array() < 0).count();
 }
+
+/// Counts the eigenvalues below tau for the completeness check. Made after the factorisation of
+/// -S - sigma M, it reuses that factor's ordering (an analysis whose cost grows with the mesh);
+/// with CHOLMOD it reuses the supernodal structure too, for a supernodal LDL^T
+/// (internal/supernodal_ldlt.h), several times faster than the simplicial one on large meshes.
+template <typename Factor>
+class Eigenvalue_counter
+{
+public:
+  Eigenvalue_counter(const Factor& factor, const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
+      : m_minus_S(minus_S), m_mass(mass), m_P(fill_permutation(factor))
+  {}
+  Eigen::Index below(double tau) const { return count_eigenvalues_below(m_minus_S, m_mass, tau, m_P); }
+
+private:
+  const Eigen::SparseMatrix<double>& m_minus_S;
+  const Eigen::VectorXd& m_mass;
+  Fill_permutation m_P;
+};
+
+#ifdef LAPMESH_HAS_CHOLMOD
+template <>
+class Eigenvalue_counter<Cholmod_supernodal_llt>
+{
+public:
+  Eigenvalue_counter(const Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& minus_S,
+                     const Eigen::VectorXd& mass)
+      : m_ldlt(*factor.factor()), m_minus_S(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
+  {}
+  Eigen::Index below(double tau) const
+  {
+    if(!m_ldlt.factorize(m_minus_S, m_mass, tau)) throw_inertia_failure(tau);
+    return m_ldlt.negative_pivots();
+  }
+
+private:
+  mutable Supernodal_ldlt m_ldlt;
+  Eigen::SparseMatrix<double> m_minus_S;  // permuted lower triangle
+  const Eigen::VectorXd& m_mass;
+};
+#endif
 
 template <typename Factor>
 void factorise_or_throw(Factor& f, const Eigen::SparseMatrix<double>& K)
@@ -301,6 +339,23 @@ Spectral_pairs spectra_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
   return out;
 }
 
+/// Y = D K^-1 D X, D = diag(scale), with the factor of K.
+template <typename Factor>
+void scaled_solve(const Factor& factor, const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y,
+                  Eigen::MatrixXd& buffer)
+{
+  buffer = scale.asDiagonal() * X;
+  Y = factor.solve(buffer);
+  Y = scale.asDiagonal() * Y;
+}
+#ifdef LAPMESH_HAS_CHOLMOD
+inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::VectorXd& scale, const Eigen::MatrixXd& X,
+                         Eigen::MatrixXd& Y, Eigen::MatrixXd&)
+{
+  factor.scaled_solve(scale, X, Y);
+}
+#endif
+
 /// One block Lanczos run for m pairs with the factor of K = -S - sigma M.
 template <typename Factor>
 Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
@@ -314,11 +369,7 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(opt.ncv_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
   Eigen::MatrixXd rhs;
-  auto apply = [&](const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) {
-    rhs = sqrt_mass.asDiagonal() * X;
-    Y = factor.solve(rhs);
-    Y = sqrt_mass.asDiagonal() * Y;
-  };
+  auto apply = [&](const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) { scaled_solve(factor, sqrt_mass, X, Y, rhs); };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
   // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma, sorted ascending.
   const Eigen::VectorXd lambda = (1.0 / r.values.array() + sigma).matrix();
@@ -357,6 +408,67 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
 }
 
 
+/// The LDL^T factorisation of -S - sigma M at the shifts of spectrum slicing (one analysis for
+/// all): the count of its negative pivots, and solves. Supernodal with CHOLMOD, else Eigen's
+/// simplicial LDL^T.
+class Shifted_ldlt
+{
+public:
+  Shifted_ldlt(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass) : m_minus_S(minus_S), m_mass(mass)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    Cholmod_supernodal_llt analysis;
+    analysis.analyzePattern(minus_S);
+    if(analysis.info() != Eigen::Success || !analysis.factor())
+      throw Numerical_error("spectral solver: the analysis of -S - sigma M failed");
+    m_ldlt.emplace(*analysis.factor());
+    m_lower = m_ldlt->permuted_lower(minus_S);
+#endif
+  }
+  /// Factorises at sigma; returns the number of eigenvalues below sigma.
+  Eigen::Index factorize_at(double sigma)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    const bool ok = m_ldlt->factorize(m_lower, m_mass, sigma);
+#else
+    Eigen::SparseMatrix<double> K = m_minus_S;
+    K.diagonal() -= sigma * m_mass;
+    if(!m_analysed) m_simplicial.analyzePattern(K);
+    m_analysed = true;
+    m_simplicial.factorize(K);
+    const bool ok = m_simplicial.info() == Eigen::Success;
+#endif
+    if(!ok)
+      throw Numerical_error("spectral solver: the LDL^T factorisation of -S - sigma M failed (sigma = " +
+                            std::to_string(sigma) + ")");
+#ifdef LAPMESH_HAS_CHOLMOD
+    return m_ldlt->negative_pivots();
+#else
+    return (m_simplicial.vectorD().array() < 0).count();
+#endif
+  }
+  template <typename Rhs>
+  Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    return m_ldlt->solve(b);
+#else
+    return m_simplicial.solve(b);
+#endif
+  }
+
+private:
+  const Eigen::SparseMatrix<double>& m_minus_S;
+  const Eigen::VectorXd& m_mass;
+#ifdef LAPMESH_HAS_CHOLMOD
+  std::optional<Supernodal_ldlt> m_ldlt;
+  Eigen::SparseMatrix<double> m_lower;  // P (-S) P^T, lower triangle
+#else
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> m_simplicial;
+  bool m_analysed = false;
+#endif
+};
+
 /// Spectrum slicing ("bands", as in Vallet & Levy's manifold harmonics): shift-invert Lanczos
 /// around successive shifts sigma_0 < sigma_1 < ..., each for about band_size pairs, so that the
 /// Krylov space stays small (Spectra's dense work grows with the square of its size). Each
@@ -381,27 +493,15 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
   if(k > n - 2)
     throw Numerical_error("spectral solver: k = " + std::to_string(k) + " needs the dense solver, which is limited to " +
                           std::to_string(opt.dense_limit) + " vertices");
-  using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
   const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
   const Null_space_deflation null_space(minus_S, mass);
   const Eigen::Index c = null_space.count();                  // 0 on a connected mesh
   const Eigen::Index max_window = std::max<Eigen::Index>(1, n - c - 2);  // Spectra needs nev < n
   const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), max_window);
   constexpr int max_attempts = 12;        // per band; a widening multiplies the window by 1.5
-  Ldlt ldlt;
-  const Deflated_solve<Ldlt> deflated(ldlt, null_space, mass);
-  bool analysed = false;
-  auto factor_at = [&](double sigma) -> Eigen::Index {
-    Eigen::SparseMatrix<double> K = minus_S;
-    K.diagonal() -= sigma * mass;
-    if(!analysed) ldlt.analyzePattern(K);
-    analysed = true;
-    ldlt.factorize(K);
-    if(ldlt.info() != Eigen::Success)
-      throw Numerical_error("spectral solver: the LDL^T factorisation of -S - sigma M failed (sigma = " +
-                            std::to_string(sigma) + ")");
-    return (ldlt.vectorD().array() < 0).count();
-  };
+  Shifted_ldlt ldlt(minus_S, mass);
+  const Deflated_solve<Shifted_ldlt> deflated(ldlt, null_space, mass);
+  auto factor_at = [&](double sigma) { return ldlt.factorize_at(sigma); };
   int band = 0;
   long long ops_total = 0;
   const std::function<void(long long)> on_op = [&](long long ops) {
@@ -541,7 +641,8 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
   Factor factor;
   factorise_or_throw(factor, K);
   K = Eigen::SparseMatrix<double>();
-  const Fill_permutation P = opt.check_completeness ? fill_permutation(factor) : Fill_permutation();
+  std::optional<Eigenvalue_counter<Factor>> counter;
+  if(opt.check_completeness) counter.emplace(factor, minus_S, mass);
   const Null_space_deflation null_space(minus_S, mass);
   const Eigen::Index c = null_space.count();  // 0 on a connected mesh
   const Deflated_solve<Factor> deflated(factor, null_space, mass);
@@ -564,7 +665,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
     if(j >= 0) {
       report("checking completeness", total_ops);
       const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
-      const Eigen::Index below = count_eigenvalues_below(minus_S, mass, tau, P);
+      const Eigen::Index below = counter->below(tau);
       if(below == j + 1) {
         pairs.values.conservativeResize(j + 1);
         pairs.vectors.conservativeResize(Eigen::NoChange, j + 1);

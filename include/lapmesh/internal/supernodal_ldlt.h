@@ -1,0 +1,243 @@
+// lapmesh — a supernodal LDL^T without pivoting, for the inertia of the shifted pencil
+// -S - tau M inside the spectrum (needs LAPMESH_HAS_CHOLMOD).
+//
+// Why. The spectral solver certifies its eigenpairs by Sylvester's law of inertia: the number
+// of negative pivots of an LDL^T factorisation of -S - tau M is the number of eigenvalues below
+// tau. That matrix is indefinite, so CHOLMOD's supernodal LL^T refuses it, and a simplicial
+// LDL^T (Eigen's, or CHOLMOD's) works column by column without dense kernels: on meshes of a
+// few hundred thousand vertices it costs several times the supernodal factorisation of the same
+// pattern, and was the largest single stage of a spectral run. This is the same unpivoted LDL^T
+// arranged by supernodes: a left-looking factorisation on the supernodal structure of a CHOLMOD
+// analysis (the fill-reducing ordering, the supernodes and their row patterns), with the updates
+// from descendant supernodes and inside a supernode done as dense matrix products.
+//
+// Pivots are taken in the order of the analysis, as in any sparse LDL^T without pivoting (the
+// simplicial ones included): a zero pivot makes factorize() fail, a tiny one is accepted. The
+// callers place tau in a spectral gap, where the matrix is far from singular.
+#ifndef LAPMESH_INTERNAL_SUPERNODAL_LDLT_H
+#define LAPMESH_INTERNAL_SUPERNODAL_LDLT_H
+
+#ifdef LAPMESH_HAS_CHOLMOD
+
+#include <lapmesh/internal/dense_products.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+class Supernodal_ldlt
+{
+public:
+  using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
+
+  /// Takes the structure of a supernodal CHOLMOD factor (analysed only, or factorised) of a
+  /// matrix with the pattern of the matrices to be factorised; the factor itself is not kept.
+  explicit Supernodal_ldlt(const cholmod_factor& symbolic)
+  {
+    const int* super = static_cast<const int*>(symbolic.super);
+    const int* pi = static_cast<const int*>(symbolic.pi);
+    const int* px = static_cast<const int*>(symbolic.px);
+    const int* rows = static_cast<const int*>(symbolic.s);
+    const int* perm = static_cast<const int*>(symbolic.Perm);
+    const std::size_t nsuper = symbolic.nsuper;
+    m_n = Eigen::Index(symbolic.n);
+    m_super.assign(super, super + nsuper + 1);
+    m_pi.assign(pi, pi + nsuper + 1);
+    m_px.assign(px, px + nsuper + 1);
+    m_rows.assign(rows, rows + m_pi.back());
+    m_values_size = std::size_t(m_px.back());
+    m_perm.resize(m_n);
+    // CHOLMOD: row i of the factor is row Perm[i] of the matrix; Eigen: P maps old to new.
+    m_perm_inverse.assign(perm, perm + m_n);
+    for(Eigen::Index i = 0; i < m_n; ++i) m_perm.indices()[perm[i]] = int(i);
+    m_super_of_column.resize(std::size_t(m_n));
+    for(std::size_t s = 0; s < nsuper; ++s)
+      for(int j = m_super[s]; j < m_super[s + 1]; ++j) m_super_of_column[std::size_t(j)] = int(s);
+  }
+
+  Eigen::Index rows() const { return m_n; }
+  /// The fill-reducing permutation P: the factorisation is of P A P^T.
+  const Permutation& permutation() const { return m_perm; }
+
+  /// The lower triangle of P A P^T, ready for factorize(): A is symmetric and given by its lower
+  /// triangle (the entries above the diagonal are not read).
+  Eigen::SparseMatrix<double> permuted_lower(const Eigen::SparseMatrix<double>& A) const
+  {
+    Eigen::SparseMatrix<double> out(A.rows(), A.cols());
+    out.selfadjointView<Eigen::Lower>() = A.selfadjointView<Eigen::Lower>().twistedBy(m_perm);
+    return out;
+  }
+
+  /// Factorises B - shift diag(d) as L D L^T, B = permuted_lower(A) and d indexed as A.
+  /// False on a zero pivot (the matrix is singular to working precision at that pivot).
+  bool factorize(const Eigen::SparseMatrix<double>& permuted_lower_triangle, const Eigen::VectorXd& d,
+                 double shift)
+  {
+    const std::size_t nsuper = m_super.size() - 1;
+    m_values.assign(m_values_size, 0.0);
+    m_pivots.setZero(m_n);
+    m_position.assign(std::size_t(m_n), 0);
+    m_head.assign(nsuper, -1);
+    m_next.assign(nsuper, -1);
+    m_progress.assign(nsuper, 0);
+    for(std::size_t s = 0; s < nsuper; ++s) {
+      const int k1 = m_super[s], k2 = m_super[s + 1], ncol = k2 - k1;
+      const int nrow = m_pi[s + 1] - m_pi[s];
+      const int* srows = m_rows.data() + m_pi[s];
+      double* X = m_values.data() + m_px[s];
+      for(int i = 0; i < nrow; ++i) m_position[std::size_t(srows[i])] = i;
+      // The matrix's columns k1..k2-1, shifted.
+      for(int j = k1; j < k2; ++j) {
+        double* column = X + std::size_t(j - k1) * std::size_t(nrow);
+        for(Eigen::SparseMatrix<double>::InnerIterator it(permuted_lower_triangle, j); it; ++it)
+          if(it.row() >= j) column[m_position[std::size_t(it.row())]] += it.value();
+        column[j - k1] -= shift * d[m_perm_inverse[std::size_t(j)]];
+      }
+      // The updates of every descendant supernode with rows in [k1, k2).
+      for(int desc = m_head[s]; desc >= 0;) {
+        const int following = m_next[std::size_t(desc)];
+        apply_update(std::size_t(desc), s, X, nrow);
+        queue(std::size_t(desc));
+        desc = following;
+      }
+      if(!factor_supernode(X, nrow, ncol, k1)) return false;
+      m_progress[s] = ncol;
+      queue(s);
+    }
+    return true;
+  }
+
+  /// x = (B - shift diag(d))^-1 b in A's numbering, with the last successful factorisation.
+  template <typename Rhs>
+  Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
+  {
+    const std::size_t nsuper = m_super.size() - 1;
+    m_rhs = m_perm * b;
+    for(std::size_t s = 0; s < nsuper; ++s) {  // L y = P b
+      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
+      const Const_block X(m_values.data() + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      auto y = m_rhs.middleRows(k1, ncol);
+      X.topRows(ncol).triangularView<Eigen::UnitLower>().solveInPlace(y);
+      if(nrow == ncol) continue;
+      m_below.noalias() = X.bottomRows(nrow - ncol) * y;
+      const int* below_rows = m_rows.data() + m_pi[s] + ncol;
+      for(int i = 0; i < nrow - ncol; ++i) m_rhs.row(below_rows[i]) -= m_below.row(i);
+    }
+    m_rhs = m_pivots.cwiseInverse().asDiagonal() * m_rhs;
+    for(std::size_t s = nsuper; s-- > 0;) {  // L^T x = D^-1 y
+      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
+      const Const_block X(m_values.data() + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      auto x = m_rhs.middleRows(k1, ncol);
+      if(nrow > ncol) {
+        const int* below_rows = m_rows.data() + m_pi[s] + ncol;
+        m_below.resize(nrow - ncol, m_rhs.cols());
+        for(int i = 0; i < nrow - ncol; ++i) m_below.row(i) = m_rhs.row(below_rows[i]);
+        x.noalias() -= X.bottomRows(nrow - ncol).transpose() * m_below;
+      }
+      X.topRows(ncol).transpose().triangularView<Eigen::UnitUpper>().solveInPlace(x);
+    }
+    return m_perm.transpose() * m_rhs;
+  }
+
+  /// The diagonal D of the last factorisation, in the permuted numbering.
+  const Eigen::VectorXd& pivots() const { return m_pivots; }
+  /// The number of negative pivots: by Sylvester's law, the number of negative eigenvalues.
+  Eigen::Index negative_pivots() const { return (m_pivots.array() < 0).count(); }
+
+private:
+  using Block = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+  using Const_block = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+
+  /// Queues supernode d on the supernode that holds its first row not yet used, if any.
+  void queue(std::size_t d)
+  {
+    const int row_count = m_pi[d + 1] - m_pi[d];
+    if(m_progress[d] >= row_count) return;
+    const int row = m_rows[std::size_t(m_pi[d] + m_progress[d])];
+    const std::size_t target = std::size_t(m_super_of_column[std::size_t(row)]);
+    m_next[d] = m_head[target];
+    m_head[target] = int(d);
+  }
+
+  /// X_s -= L_d(rows >= k1) D_d L_d(rows in [k1, k2))^T, scattered into supernode s.
+  void apply_update(std::size_t d, std::size_t s, double* X, int nrow)
+  {
+    const int dk1 = m_super[d], dcol = m_super[d + 1] - dk1;
+    const int drow = m_pi[d + 1] - m_pi[d];
+    const int* drows = m_rows.data() + m_pi[d];
+    const int k1 = m_super[s], k2 = m_super[s + 1];
+    const int start = m_progress[d];
+    int stop = start;
+    while(stop < drow && drows[stop] < k2) ++stop;
+    const int inside = stop - start, below = drow - start;
+    const Block Ld(m_values.data() + m_px[d], drow, dcol, Eigen::OuterStride<>(drow));
+    m_scaled.resize(dcol, inside);  // D_d L_d(rows in [k1, k2))^T
+    for(int j = 0; j < inside; ++j)
+      for(int c = 0; c < dcol; ++c) m_scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j, c);
+    m_update.resize(below, inside);
+    tall_gemm(false, 1.0, Ld.middleRows(start, below), m_scaled, 0.0, m_update);
+    for(int j = 0; j < inside; ++j) {
+      double* column = X + std::size_t(drows[start + j] - k1) * std::size_t(nrow);
+      for(int i = j; i < below; ++i) column[m_position[std::size_t(drows[start + i])]] -= m_update(i, j);
+    }
+    m_progress[d] = stop;
+  }
+
+  /// Dense L D L^T of a supernode's columns (nrow x ncol, the leading ncol x ncol block on the
+  /// diagonal), right-looking in panels: a scalar kernel inside a panel, a matrix product for the
+  /// columns to its right.
+  bool factor_supernode(double* data, int nrow, int ncol, int k1)
+  {
+    Block X(data, nrow, ncol, Eigen::OuterStride<>(nrow));
+    constexpr int panel = 32;
+    for(int p0 = 0; p0 < ncol; p0 += panel) {
+      const int p1 = std::min(ncol, p0 + panel);
+      for(int j = p0; j < p1; ++j) {
+        const double pivot = X(j, j);
+        if(pivot == 0.0 || !std::isfinite(pivot)) return false;
+        m_pivots[k1 + j] = pivot;
+        const double inverse = 1.0 / pivot;
+        for(int c = j + 1; c < p1; ++c) {
+          const double factor = X(c, j);  // L(c, j) d_j, before the division below
+          if(factor == 0.0) continue;
+          for(int i = c; i < nrow; ++i) X(i, c) -= X(i, j) * (factor * inverse);
+        }
+        for(int i = j + 1; i < nrow; ++i) X(i, j) *= inverse;
+      }
+      if(p1 == ncol) break;
+      // Columns p1.. ncol-1: X(i, c) -= sum over the panel of L(i, j) d_j L(c, j), i >= p1.
+      const int w = p1 - p0, right = ncol - p1, below = nrow - p1;
+      m_scaled.resize(w, right);
+      for(int c = 0; c < right; ++c)
+        for(int j = 0; j < w; ++j) m_scaled(j, c) = m_pivots[k1 + p0 + j] * X(p1 + c, p0 + j);
+      tall_gemm(false, -1.0, X.block(p1, p0, below, w), m_scaled, 1.0, X.block(p1, p1, below, right));
+    }
+    for(int c = 0; c < ncol; ++c) X.col(c).head(c).setZero();  // the unused upper triangle
+    return true;
+  }
+
+  Eigen::Index m_n = 0;
+  std::vector<int> m_super, m_pi, m_px, m_rows, m_super_of_column, m_perm_inverse;
+  std::size_t m_values_size = 0;
+  std::vector<double> m_values;
+  Eigen::VectorXd m_pivots;
+  Permutation m_perm;
+  // Work space of factorize().
+  std::vector<int> m_position, m_head, m_next, m_progress;
+  Eigen::MatrixXd m_scaled, m_update;
+  mutable Eigen::MatrixXd m_rhs, m_below;  // solve()'s
+};
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif // LAPMESH_HAS_CHOLMOD
+#endif
