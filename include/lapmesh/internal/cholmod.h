@@ -164,6 +164,10 @@ public:
       for(Eigen::Index i = 0; i < n; ++i) Y(perm[i], j) = scale[perm[i]] * m_rhs(i, j);
   }
 
+  /// The numeric values of the factor, for a caller that reuses their memory once the factor is
+  /// no longer needed (it must factorize() again before the next solve).
+  double* values_to_overwrite() { return static_cast<double*>(m_cholmodFactor->x); }
+
   /// CHOLMOD's factor (its supernodal structure and ordering; nullptr before analyzePattern).
   const cholmod_factor* factor() const { return m_cholmodFactor; }
   /// The fill-reducing ordering: row i of the factor is row perm[i] of the matrix (nullptr

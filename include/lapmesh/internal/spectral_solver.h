@@ -253,6 +253,7 @@ public:
       : m_minus_S(minus_S), m_mass(mass), m_P(fill_permutation(factor))
   {}
   Eigen::Index below(double tau) const { return count_eigenvalues_below(m_minus_S, m_mass, tau, m_P); }
+  static constexpr bool overwrites_factor() { return false; }
 
 private:
   const Eigen::SparseMatrix<double>& m_minus_S;
@@ -261,21 +262,26 @@ private:
 };
 
 #ifdef LAPMESH_HAS_CHOLMOD
+/// With CHOLMOD the LDL^T is written over the factor of -S - sigma M, whose memory is then free:
+/// the completeness check comes after the Krylov run, and a retry factorises again
+/// (overwrites_factor()). On a large mesh this spares a second factor's fresh pages.
 template <>
 class Eigenvalue_counter<Cholmod_supernodal_llt>
 {
 public:
-  Eigenvalue_counter(const Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& minus_S,
+  Eigenvalue_counter(Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& minus_S,
                      const Eigen::VectorXd& mass)
-      : m_ldlt(*factor.factor()), m_minus_S(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
+      : m_factor(factor), m_ldlt(*factor.factor()), m_minus_S(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
   {}
   Eigen::Index below(double tau) const
   {
-    if(!m_ldlt.factorize(m_minus_S, m_mass, tau)) throw_inertia_failure(tau);
+    if(!m_ldlt.factorize_in(m_factor.values_to_overwrite(), m_minus_S, m_mass, tau)) throw_inertia_failure(tau);
     return m_ldlt.negative_pivots();
   }
+  static constexpr bool overwrites_factor() { return true; }
 
 private:
+  Cholmod_supernodal_llt& m_factor;
   mutable Supernodal_ldlt m_ldlt;
   Eigen::SparseMatrix<double> m_minus_S;  // permuted lower triangle
   const Eigen::VectorXd& m_mass;
@@ -650,6 +656,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
   const std::function<void(long long)> on_op = [&](long long ops) {
     if(opt.progress) report("lanczos", ops);
   };
+  bool factor_overwritten = false;
   for(;; ++attempt) {
     // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
     const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
@@ -666,6 +673,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
       report("checking completeness", total_ops);
       const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
       const Eigen::Index below = counter->below(tau);
+      factor_overwritten = counter->overwrites_factor();
       if(below == j + 1) {
         pairs.values.conservativeResize(j + 1);
         pairs.vectors.conservativeResize(Eigen::NoChange, j + 1);
@@ -682,6 +690,15 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
                             " smallest eigenpairs (repeated eigenvalues missed after " + std::to_string(attempt) +
                             " attempts)");
     extra = 2 * extra + 4;
+    if(factor_overwritten) {  // the check used the factor's memory: factorise again (same analysis)
+      report("factorising", total_ops);
+      K = minus_S;
+      K.diagonal() -= sigma * mass;
+      factor.factorize(K);
+      if(factor.info() != Eigen::Success) factorise_or_throw(factor, K);
+      K = Eigen::SparseMatrix<double>();
+      factor_overwritten = false;
+    }
   }
 }
 

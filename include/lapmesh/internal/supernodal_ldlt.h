@@ -81,8 +81,24 @@ public:
   bool factorize(const Eigen::SparseMatrix<double>& permuted_lower_triangle, const Eigen::VectorXd& d,
                  double shift)
   {
+    m_own_values.resize(m_values_size);
+    return factorize_in(m_own_values.data(), permuted_lower_triangle, d, shift);
+  }
+
+  /// The number of values of the factor: the size of a CHOLMOD supernodal factor of the same
+  /// structure.
+  std::size_t values_size() const { return m_values_size; }
+
+  /// factorize(), with the factor written to `storage` (values_size() doubles, overwritten): the
+  /// memory of a CHOLMOD factor of the same structure that is no longer needed, which spares the
+  /// fresh pages of a second factor on a large mesh. `storage` must outlive the use of the
+  /// factorisation.
+  bool factorize_in(double* storage, const Eigen::SparseMatrix<double>& permuted_lower_triangle,
+                    const Eigen::VectorXd& d, double shift)
+  {
     const std::size_t nsuper = m_super.size() - 1;
-    m_values.assign(m_values_size, 0.0);
+    m_values = storage;
+    std::fill(m_values, m_values + m_values_size, 0.0);
     m_pivots.setZero(m_n);
     m_position.assign(std::size_t(m_n), 0);
     m_head.assign(nsuper, -1);
@@ -92,7 +108,7 @@ public:
       const int k1 = m_super[s], k2 = m_super[s + 1], ncol = k2 - k1;
       const int nrow = m_pi[s + 1] - m_pi[s];
       const int* srows = m_rows.data() + m_pi[s];
-      double* X = m_values.data() + m_px[s];
+      double* X = m_values + m_px[s];
       for(int i = 0; i < nrow; ++i) m_position[std::size_t(srows[i])] = i;
       // The matrix's columns k1..k2-1, shifted.
       for(int j = k1; j < k2; ++j) {
@@ -123,7 +139,7 @@ public:
     m_rhs = m_perm * b;
     for(std::size_t s = 0; s < nsuper; ++s) {  // L y = P b
       const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
-      const Const_block X(m_values.data() + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      const Const_block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
       auto y = m_rhs.middleRows(k1, ncol);
       X.topRows(ncol).triangularView<Eigen::UnitLower>().solveInPlace(y);
       if(nrow == ncol) continue;
@@ -134,7 +150,7 @@ public:
     m_rhs = m_pivots.cwiseInverse().asDiagonal() * m_rhs;
     for(std::size_t s = nsuper; s-- > 0;) {  // L^T x = D^-1 y
       const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
-      const Const_block X(m_values.data() + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      const Const_block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
       auto x = m_rhs.middleRows(k1, ncol);
       if(nrow > ncol) {
         const int* below_rows = m_rows.data() + m_pi[s] + ncol;
@@ -178,7 +194,7 @@ private:
     int stop = start;
     while(stop < drow && drows[stop] < k2) ++stop;
     const int inside = stop - start, below = drow - start;
-    const Block Ld(m_values.data() + m_px[d], drow, dcol, Eigen::OuterStride<>(drow));
+    const Block Ld(m_values + m_px[d], drow, dcol, Eigen::OuterStride<>(drow));
     m_scaled.resize(dcol, inside);  // D_d L_d(rows in [k1, k2))^T
     for(int j = 0; j < inside; ++j)
       for(int c = 0; c < dcol; ++c) m_scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j, c);
@@ -227,7 +243,8 @@ private:
   Eigen::Index m_n = 0;
   std::vector<int> m_super, m_pi, m_px, m_rows, m_super_of_column, m_perm_inverse;
   std::size_t m_values_size = 0;
-  std::vector<double> m_values;
+  std::vector<double> m_own_values;
+  double* m_values = nullptr;  // the last factorisation's values
   Eigen::VectorXd m_pivots;
   Permutation m_perm;
   // Work space of factorize().
