@@ -226,13 +226,13 @@ def process(path, out_dir, task, options):
                     text.write("%d,%s\n" % (i, ",".join(map(_g17, values))))
                 _write_atomically(result, text.getvalue())
             elif task == "spectrum":
-                k = min(options["k"], len(V))
+                k = min(options["k"], len(V) - 1)
                 basis = lapmesh.SpectralBasis(V, F, k, **shape)
                 _write_atomically(results(out_dir, stem, task)[1], lambda f: _save_npz(f, basis))
                 _write_atomically(result, "index,eigenvalue\n" + "".join(
                     "%d,%s\n" % (i, _g17(x)) for i, x in enumerate(basis.values[:k])))
             elif task == "reconstruct":
-                k = min(options["k"], len(V))
+                k = min(options["k"], len(V) - 1)
                 lapmesh.write_mesh(result, lapmesh.SpectralBasis(V, F, k, **shape).reconstruct(k), F)
             elif task == "denoise-study":
                 study = {key: options[key] for key in ("levels", "schemes", "laplacians", "lambdas", "iterations",
@@ -281,6 +281,19 @@ def _study_csv(r, doc):
     return "\n".join(lines) + "\n"
 
 
+def worker_environ():
+    """The environment distributed's nannies give their workers, less MALLOC_TRIM_THRESHOLD_.
+    Setting any of glibc's malloc thresholds turns off its adaptive mmap threshold: every block
+    over 128 KiB is then mapped afresh and page-faulted at each use, which made the tasks
+    markedly slower in a worker than in a serial run (doc/python.md). Without it the workers run
+    with glibc's defaults, as the serial run does."""
+    import dask
+
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    return environ
+
+
 def find_meshes(mesh_dir):
     return sorted(os.path.join(mesh_dir, f) for f in os.listdir(mesh_dir)
                   if f.lower().endswith(MESH_EXTENSIONS) and os.path.isfile(os.path.join(mesh_dir, f)))
@@ -309,6 +322,7 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
             if progress:
                 progress(i + 1, len(todo))
     elif todo:
+        import dask
         from dask.distributed import Client, LocalCluster, as_completed
 
         cluster = None
@@ -319,8 +333,9 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
             client = Client(scheduler)
         else:
             # A worker past its memory limit is restarted by its nanny: its mesh fails (KilledWorker).
-            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                                   dashboard_address=None, memory_limit=memory_limit)
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": worker_environ()}):
+                cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
+                                       dashboard_address=None, memory_limit=memory_limit)
             client = Client(cluster)
         try:
             futures = client.map(process, todo, out_dir=out_dir, task=task, options=options, pure=False)
@@ -359,7 +374,7 @@ def main(argv=None):
     p.add_argument("mesh_dir")
     p.add_argument("out_dir")
     p.add_argument("--task", required=True, choices=TASKS)
-    p.add_argument("-k", type=int, default=30, help="eigenpairs (spectrum, reconstruct; at most the vertices)")
+    p.add_argument("-k", type=int, default=30, help="eigenpairs (spectrum, reconstruct; at most the vertices less one)")
     p.add_argument("--laplacian", default=None, choices=lapmesh.names("laplacian"))
     p.add_argument("--area", default=None, choices=lapmesh.names("area"))
     p.add_argument("--scheme", default=None, choices=lapmesh.names("scheme"))

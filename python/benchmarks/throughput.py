@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Meshes per minute of `python3 -m lapmesh.batch` over a folder, serially and on a local Dask
+cluster of 1 and 2 workers (or the counts given), timed as a user runs it: the command from
+start to exit, the cluster's start and shutdown included.
+
+    PYTHONPATH=build/python python3 python/benchmarks/throughput.py [MESH_DIR] [--task reconstruct -k 30]
+                                                                     [--workers 1,2] [--rounds 2]
+
+MESH_DIR defaults to CGAL's data set in the build tree. Each configuration writes into a fresh
+folder; rounds alternate the configurations, so that load from elsewhere hits each alike, and
+the figure kept is the fastest round. Every run's summary must list the same meshes with the
+same status, and every result file must equal the serial run's byte for byte (the batch runs
+BLAS on one thread everywhere). Not a test: the figures depend on the machine and its load.
+"""
+import argparse
+import csv
+import filecmp
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def default_meshes():
+    here = os.path.dirname(os.path.abspath(__file__))
+    return os.environ.get("LAPMESH_MESHES") or os.path.join(here, "..", "..", "build", "cgal-data", "data", "meshes")
+
+
+def summary(out_dir, task):
+    with open(os.path.join(out_dir, "summary-%s.csv" % task), newline="") as f:
+        return {row["mesh"]: row for row in csv.DictReader(f)}
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("mesh_dir", nargs="?", default=default_meshes())
+    p.add_argument("--task", default="reconstruct")
+    p.add_argument("-k", type=int, default=30)
+    p.add_argument("--workers", default="1,2", help="comma-separated worker counts of the local clusters")
+    p.add_argument("--rounds", type=int, default=2)
+    a = p.parse_args()
+
+    configs = [("serial", ["--serial"])] + [("%s worker%s" % (w, "" if w == "1" else "s"), ["--workers", w])
+                                            for w in a.workers.split(",")]
+    task_args = ["--task", a.task] + (["-k", str(a.k)] if a.task in ("spectrum", "reconstruct") else [])
+    # The serial run uses the threads a Dask worker uses, so that its results are the reference.
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    print("%s: %d files; task %s; %d rounds; cores %d; load average before: %.2f %.2f %.2f" % (
+        a.mesh_dir, len(os.listdir(a.mesh_dir)), " ".join(task_args[1:]), a.rounds, os.cpu_count(), *os.getloadavg()))
+
+    best = {}
+    with tempfile.TemporaryDirectory() as scratch:
+        for r in range(a.rounds):
+            for name, args in configs:
+                out = os.path.join(scratch, "%d-%s" % (r, name.replace(" ", "-")))
+                start = time.perf_counter()
+                # Exit status 1: some meshes failed (recorded in the summary, compared below).
+                code = subprocess.run([sys.executable, "-m", "lapmesh.batch", a.mesh_dir, out] + task_args + args,
+                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE).returncode
+                seconds = time.perf_counter() - start
+                if code not in (0, 1):
+                    sys.exit("%s: the batch exited with status %d" % (name, code))
+                rows = summary(out, a.task)
+                if name not in best or seconds < best[name][0]:
+                    best[name] = (seconds, rows, out)
+
+        ref_rows, ref_dir = best["serial"][1], best["serial"][2]
+        for name, (seconds, rows, out) in best.items():
+            assert sorted(rows) == sorted(ref_rows), name + ": another set of meshes"
+            for mesh, row in rows.items():
+                assert row["status"] == ref_rows[mesh]["status"], "%s: %s: %s" % (name, mesh, row["status"])
+            names = sorted(f for f in os.listdir(ref_dir) if not f.startswith("summary") and not f.endswith(".done"))
+            _, mismatch, errors = filecmp.cmpfiles(ref_dir, out, names, shallow=False)
+            assert not mismatch and not errors, "%s: results differ from the serial run: %s" % (name, mismatch + errors)
+        ok = sum(1 for row in ref_rows.values() if row["status"] == "ok")
+        vertices = sum(int(row["vertices"]) for row in ref_rows.values() if row["status"] == "ok")
+        in_tasks = sum(float(row["seconds"]) for row in ref_rows.values())
+        print("%d meshes (%d ok, %d vertices in those); the serial run's tasks took %.1f s in all" % (
+            len(ref_rows), ok, vertices, in_tasks))
+        for name, (seconds, _, _) in best.items():
+            print("%-10s %7.1f s  %6.0f meshes/min" % (name, seconds, 60.0 * len(ref_rows) / seconds))
+        print("results equal to the serial run's, byte for byte")
+    print("load average after: %.2f %.2f %.2f" % os.getloadavg())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
