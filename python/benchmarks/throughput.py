@@ -16,7 +16,6 @@ import argparse
 import csv
 import filecmp
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -57,11 +56,11 @@ def main():
                 out = os.path.join(scratch, "%d-%s" % (r, name.replace(" ", "-")))
                 start = time.perf_counter()
                 # Exit status 1: some meshes failed (recorded in the summary, compared below).
-                code = subprocess.run([sys.executable, "-m", "lapmesh.batch", a.mesh_dir, out] + task_args + args,
-                                      env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE).returncode
+                batch = subprocess.run([sys.executable, "-m", "lapmesh.batch", a.mesh_dir, out] + task_args + args,
+                                       env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
                 seconds = time.perf_counter() - start
-                if code not in (0, 1):
-                    sys.exit("%s: the batch exited with status %d" % (name, code))
+                if batch.returncode not in (0, 1):
+                    sys.exit("%s: the batch exited with status %d: %s" % (name, batch.returncode, batch.stderr[-2000:]))
                 rows = summary(out, a.task)
                 if name not in best or seconds < best[name][0]:
                     best[name] = (seconds, rows, out)

@@ -226,13 +226,13 @@ def process(path, out_dir, task, options):
                     text.write("%d,%s\n" % (i, ",".join(map(_g17, values))))
                 _write_atomically(result, text.getvalue())
             elif task == "spectrum":
-                k = min(options["k"], len(V) - 1)
+                k = _pairs(options["k"], F)
                 basis = lapmesh.SpectralBasis(V, F, k, **shape)
                 _write_atomically(results(out_dir, stem, task)[1], lambda f: _save_npz(f, basis))
                 _write_atomically(result, "index,eigenvalue\n" + "".join(
                     "%d,%s\n" % (i, _g17(x)) for i, x in enumerate(basis.values[:k])))
             elif task == "reconstruct":
-                k = min(options["k"], len(V) - 1)
+                k = _pairs(options["k"], F)
                 lapmesh.write_mesh(result, lapmesh.SpectralBasis(V, F, k, **shape).reconstruct(k), F)
             elif task == "denoise-study":
                 study = {key: options[key] for key in ("levels", "schemes", "laplacians", "lambdas", "iterations",
@@ -252,6 +252,13 @@ def process(path, out_dir, task, options):
     if row["status"] == "ok":
         _write_atomically(done, json.dumps(row))
     return row
+
+
+def _pairs(k, F):
+    """k, at most the operator's size: the vertices in faces (a vertex in no face has no row)."""
+    import numpy as np
+
+    return min(k, np.unique(F).size)
 
 
 def _save_npz(f, basis):
@@ -374,7 +381,7 @@ def main(argv=None):
     p.add_argument("mesh_dir")
     p.add_argument("out_dir")
     p.add_argument("--task", required=True, choices=TASKS)
-    p.add_argument("-k", type=int, default=30, help="eigenpairs (spectrum, reconstruct; at most the vertices less one)")
+    p.add_argument("-k", type=int, default=30, help="eigenpairs (spectrum, reconstruct; at most the vertices in faces)")
     p.add_argument("--laplacian", default=None, choices=lapmesh.names("laplacian"))
     p.add_argument("--area", default=None, choices=lapmesh.names("area"))
     p.add_argument("--scheme", default=None, choices=lapmesh.names("scheme"))

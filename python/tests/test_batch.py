@@ -284,3 +284,17 @@ def test_worker_memory_limit(corpus, tmp_path):
     summary = read_summary(tmp_path / "out" / "summary-spectrum.csv")
     assert summary["big_torus.off"]["status"] == "failed" and "MemoryError" in summary["big_torus.off"]["error"]
     assert float(summary["mid_torus.obj"]["peak_mib"]) < 286
+
+
+def test_k_is_clipped_to_the_vertices_in_faces(tmp_path):
+    """-k above the operator's size: a tetrahedron with two vertices in no face gives its 4 pairs."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    (folder / "tet.off").write_text("OFF\n6 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n5 5 5\n6 6 6\n"
+                                    "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n")
+    out = str(tmp_path / "out")
+    for task in ("spectrum", "reconstruct"):
+        rows = batch.run(str(folder), out, task, dict(OPTIONS, k=30), serial=True)
+        assert rows[0]["status"] == "ok", rows[0]["error"]
+    with open(batch.outputs(out, "tet", "spectrum")[0]) as f:
+        assert len(f.read().splitlines()) == 1 + 4
