@@ -262,6 +262,35 @@ private:
 };
 
 #ifdef LAPMESH_HAS_CHOLMOD
+/// -S - sigma M as L D L^T on the supernodal structure of a CHOLMOD factor, at any shift sigma:
+/// the count of negative pivots (the eigenvalues below sigma) and solves. Shared by the
+/// completeness check and spectrum slicing.
+class Shifted_supernodal_ldlt
+{
+public:
+  Shifted_supernodal_ldlt(const cholmod_factor& structure, const Eigen::SparseMatrix<double>& minus_S,
+                          const Eigen::VectorXd& mass)
+      : m_ldlt(structure), m_lower(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
+  {}
+  /// Factorises at sigma, into `storage` (values_size() doubles, see Supernodal_ldlt::factorize_in)
+  /// or, without it, into its own memory. False on a zero pivot.
+  bool factorize_at(double sigma, double* storage = nullptr)
+  {
+    return storage ? m_ldlt.factorize_in(storage, m_lower, m_mass, sigma) : m_ldlt.factorize(m_lower, m_mass, sigma);
+  }
+  Eigen::Index negative_pivots() const { return m_ldlt.negative_pivots(); }
+  template <typename Rhs>
+  Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
+  {
+    return m_ldlt.solve(b);
+  }
+
+private:
+  Supernodal_ldlt m_ldlt;
+  Eigen::SparseMatrix<double> m_lower;  // P (-S) P^T, lower triangle
+  const Eigen::VectorXd& m_mass;
+};
+
 /// With CHOLMOD the LDL^T is written over the factor of -S - sigma M, whose memory is then free:
 /// the completeness check comes after the Krylov run, and a retry factorises again
 /// (overwrites_factor()). On a large mesh this spares a second factor's fresh pages.
@@ -271,20 +300,18 @@ class Eigenvalue_counter<Cholmod_supernodal_llt>
 public:
   Eigenvalue_counter(Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& minus_S,
                      const Eigen::VectorXd& mass)
-      : m_factor(factor), m_ldlt(*factor.factor()), m_minus_S(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
+      : m_factor(factor), m_shifted(*factor.factor(), minus_S, mass)
   {}
   Eigen::Index below(double tau) const
   {
-    if(!m_ldlt.factorize_in(m_factor.values_to_overwrite(), m_minus_S, m_mass, tau)) throw_inertia_failure(tau);
-    return m_ldlt.negative_pivots();
+    if(!m_shifted.factorize_at(tau, m_factor.values_to_overwrite())) throw_inertia_failure(tau);
+    return m_shifted.negative_pivots();
   }
   static constexpr bool overwrites_factor() { return true; }
 
 private:
   Cholmod_supernodal_llt& m_factor;
-  mutable Supernodal_ldlt m_ldlt;
-  Eigen::SparseMatrix<double> m_minus_S;  // permuted lower triangle
-  const Eigen::VectorXd& m_mass;
+  mutable Shifted_supernodal_ldlt m_shifted;
 };
 #endif
 
@@ -420,22 +447,24 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
 class Shifted_ldlt
 {
 public:
-  Shifted_ldlt(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass) : m_minus_S(minus_S), m_mass(mass)
-  {
+  Shifted_ldlt(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
 #ifdef LAPMESH_HAS_CHOLMOD
+  {
     Cholmod_supernodal_llt analysis;
     analysis.analyzePattern(minus_S);
     if(analysis.info() != Eigen::Success || !analysis.factor())
       throw Numerical_error("spectral solver: the analysis of -S - sigma M failed");
-    m_ldlt.emplace(*analysis.factor());
-    m_lower = m_ldlt->permuted_lower(minus_S);
-#endif
+    m_ldlt.emplace(*analysis.factor(), minus_S, mass);
   }
+#else
+      : m_minus_S(minus_S), m_mass(mass)
+  {}
+#endif
   /// Factorises at sigma; returns the number of eigenvalues below sigma.
   Eigen::Index factorize_at(double sigma)
   {
 #ifdef LAPMESH_HAS_CHOLMOD
-    const bool ok = m_ldlt->factorize(m_lower, m_mass, sigma);
+    const bool ok = m_ldlt->factorize_at(sigma);
 #else
     Eigen::SparseMatrix<double> K = m_minus_S;
     K.diagonal() -= sigma * m_mass;
@@ -464,12 +493,11 @@ public:
   }
 
 private:
+#ifdef LAPMESH_HAS_CHOLMOD
+  std::optional<Shifted_supernodal_ldlt> m_ldlt;
+#else
   const Eigen::SparseMatrix<double>& m_minus_S;
   const Eigen::VectorXd& m_mass;
-#ifdef LAPMESH_HAS_CHOLMOD
-  std::optional<Supernodal_ldlt> m_ldlt;
-  Eigen::SparseMatrix<double> m_lower;  // P (-S) P^T, lower triangle
-#else
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> m_simplicial;
   bool m_analysed = false;
 #endif

@@ -56,7 +56,7 @@ public:
     m_values_size = std::size_t(m_px.back());
     m_perm.resize(m_n);
     // CHOLMOD: row i of the factor is row Perm[i] of the matrix; Eigen: P maps old to new.
-    m_perm_inverse.assign(perm, perm + m_n);
+    m_matrix_row.assign(perm, perm + m_n);
     for(Eigen::Index i = 0; i < m_n; ++i) m_perm.indices()[perm[i]] = int(i);
     m_super_of_column.resize(std::size_t(m_n));
     for(std::size_t s = 0; s < nsuper; ++s)
@@ -115,7 +115,7 @@ public:
         double* column = X + std::size_t(j - k1) * std::size_t(nrow);
         for(Eigen::SparseMatrix<double>::InnerIterator it(permuted_lower_triangle, j); it; ++it)
           if(it.row() >= j) column[m_position[std::size_t(it.row())]] += it.value();
-        column[j - k1] -= shift * d[m_perm_inverse[std::size_t(j)]];
+        column[j - k1] -= shift * d[m_matrix_row[std::size_t(j)]];
       }
       // The updates of every descendant supernode with rows in [k1, k2).
       for(int desc = m_head[s]; desc >= 0;) {
@@ -241,7 +241,8 @@ private:
   }
 
   Eigen::Index m_n = 0;
-  std::vector<int> m_super, m_pi, m_px, m_rows, m_super_of_column, m_perm_inverse;
+  std::vector<int> m_super, m_pi, m_px, m_rows, m_super_of_column;
+  std::vector<int> m_matrix_row;  // the matrix's row (and column) at each row of the factor
   std::size_t m_values_size = 0;
   std::vector<double> m_own_values;
   double* m_values = nullptr;  // the last factorisation's values
