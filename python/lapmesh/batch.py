@@ -73,7 +73,7 @@ def results(out_dir, stem, task):
 # ---- memory ----
 # Bytes per vertex that a task needs at least, above the process's resident memory before it:
 # reading a mesh, and each task's work; spectrum and reconstruct add SPECTRAL_BYTES_PER_PAIR per
-# vertex and pair. Set below the peaks measured on CGAL's meshes (doc/python.md), so that a mesh
+# vertex and pair. Set below the peaks measured on CGAL's meshes (doc/cluster.md), so that a mesh
 # is refused only when it cannot fit.
 READ_BYTES_PER_VERTEX = 400
 TASK_BYTES_PER_VERTEX = {"curvature": 400, "spectrum": 1000, "reconstruct": 1000, "smooth": 1000,
@@ -208,6 +208,7 @@ def process(path, out_dir, task, options):
     result, done = outputs(out_dir, stem, task)
     row = {"mesh": os.path.basename(path), "vertices": "", "faces": "", "status": "ok", "error": "", "seconds": "",
            "peak_mib": ""}
+    restore_adaptive_malloc()
     start = time.perf_counter()
     _reset_peak()
     try:
@@ -288,17 +289,35 @@ def _study_csv(r, doc):
     return "\n".join(lines) + "\n"
 
 
-def worker_environ():
-    """The environment distributed's nannies give their workers, less MALLOC_TRIM_THRESHOLD_.
-    Setting any of glibc's malloc thresholds turns off its adaptive mmap threshold: every block
-    over 128 KiB is then mapped afresh and page-faulted at each use, which made the tasks
-    markedly slower in a worker than in a serial run (doc/python.md). Without it the workers run
-    with glibc's defaults, as the serial run does."""
-    import dask
+# glibc's mallopt parameters, and the largest mmap threshold its adaptive threshold reaches on 64 bits.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+_ADAPTIVE_MMAP_THRESHOLD_MAX = 32 << 20
+_malloc_checked = False
 
-    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
-    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
-    return environ
+
+def restore_adaptive_malloc():
+    """In a process started with MALLOC_TRIM_THRESHOLD_ set, sets glibc's mmap threshold to the
+    largest value its adaptive threshold reaches and the trim threshold to twice that, as the
+    adaptive rule does. distributed's nanny sets that variable for every worker it starts (a local
+    cluster's and `dask-worker`'s alike), and setting any malloc threshold turns glibc's adaptive
+    rule off: every block over 128 KiB is then mapped and page-faulted afresh at each use, which
+    made the tasks markedly slower on a worker than in a serial run (doc/cluster.md). Each task
+    calls it; it acts once per process. Returns whether it changed the thresholds (False without
+    the variable, with MALLOC_MMAP_THRESHOLD_ set by the user, or without glibc)."""
+    global _malloc_checked
+    if _malloc_checked:
+        return False
+    _malloc_checked = True
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ or "MALLOC_MMAP_THRESHOLD_" in os.environ:
+        return False  # glibc's default, or thresholds the user chose
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None)
+        return bool(libc.mallopt(_M_MMAP_THRESHOLD, _ADAPTIVE_MMAP_THRESHOLD_MAX) and
+                    libc.mallopt(_M_TRIM_THRESHOLD, 2 * _ADAPTIVE_MMAP_THRESHOLD_MAX))
+    except (OSError, AttributeError):  # not glibc
+        return False
 
 
 def find_meshes(mesh_dir):
@@ -329,7 +348,6 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
             if progress:
                 progress(i + 1, len(todo))
     elif todo:
-        import dask
         from dask.distributed import Client, LocalCluster, as_completed
 
         cluster = None
@@ -340,9 +358,8 @@ def run(mesh_dir, out_dir, task, options, workers=None, scheduler=None, serial=F
             client = Client(scheduler)
         else:
             # A worker past its memory limit is restarted by its nanny: its mesh fails (KilledWorker).
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": worker_environ()}):
-                cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
-                                       dashboard_address=None, memory_limit=memory_limit)
+            cluster = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1, processes=True,
+                                   dashboard_address=None, memory_limit=memory_limit)
             client = Client(cluster)
         try:
             futures = client.map(process, todo, out_dir=out_dir, task=task, options=options, pure=False)
@@ -439,4 +456,8 @@ def _default(key):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Through the importable module, not this __main__: Dask then sends the workers a reference
+    # to lapmesh.batch.process, which they import from their own lapmesh, not this file's code.
+    from lapmesh import batch
+
+    sys.exit(batch.main())

@@ -1,7 +1,8 @@
 """python3 -m lapmesh.batch: a local Dask cluster of 2 worker processes gives the serial run's
 outputs byte for byte on 40 meshes of CGAL's data set; a broken mesh is reported while the
 others finish; a re-run skips what is complete and redoes only what is missing; the summary's
-peak memory, the spectrum's .npz, and a worker's memory limit."""
+peak memory, the spectrum's .npz, a worker's memory limit, a cluster started by dask-scheduler
+and dask-worker, and glibc's malloc thresholds on a worker."""
 import csv
 import filecmp
 import os
@@ -184,17 +185,64 @@ def test_killed_batch_resumes(corpus, tmp_path):
         assert os.stat(out / f).st_mtime_ns == t, f + " was recomputed"
 
 
+def free_port():
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def test_running_scheduler(corpus, tmp_path):
-    """--scheduler: any running Dask scheduler (here a LocalCluster's) serves the batch."""
-    from dask.distributed import LocalCluster
+    """--scheduler with a scheduler and a worker started as on a cluster (dask-scheduler and
+    dask-worker, as doc/cluster.md's walkthrough does): the batch completes, and the worker ran
+    its own lapmesh.batch.process (sent by reference, not as the command line's __main__ code),
+    which restored glibc's adaptive malloc thresholds in that worker."""
+    import time
+    from dask.distributed import Client
 
     folder, chosen = corpus
-    environ = dict(os.environ)
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        rows = batch.run(folder, str(tmp_path), "curvature", OPTIONS, scheduler=cluster.scheduler_address)
-    os.environ.clear()
-    os.environ.update(environ)
-    assert sum(r["status"] == "ok" for r in rows) == len(chosen) and rows[-1]["status"] == "failed"
+    address = "tcp://127.0.0.1:%d" % free_port()
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    cli = [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+           address.rsplit(":", 1)[1], "--no-dashboard"]
+    scheduler = subprocess.Popen(cli, **quiet)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                               "--no-dashboard"], **quiet)
+    try:
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(1, timeout=60)
+            r = subprocess.run([sys.executable, "-m", "lapmesh.batch", folder, str(tmp_path), "--task", "curvature",
+                                "--scheduler", address], capture_output=True, text=True, timeout=300)
+            assert r.returncode == 1, r.stdout + r.stderr  # the broken mesh
+            def worker_state():
+                import resource
+
+                import numpy as np
+                from lapmesh import batch as worker_batch
+
+                before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+                for _ in range(20):
+                    np.ones(1 << 19).sum()  # a 4 MiB block, as in test_restore_adaptive_malloc
+                faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+                return worker_batch._malloc_checked, os.environ.get("MALLOC_TRIM_THRESHOLD_"), faults
+            (state,) = client.run(worker_state).values()
+        assert state[0] is True and state[1] is not None  # the task's answer to the nanny's variable
+        # Its effect in that worker: the blocks reuse freed memory instead of faulting every page.
+        assert state[2] < 20 * 1024 / 10, state
+        rows = read_summary(tmp_path / "summary-curvature.csv")
+        assert [m for m, row in rows.items() if row["status"] == "ok"] == chosen
+        assert rows["zz_broken.off"]["status"] == "failed"
+    finally:
+        for p in (worker, scheduler):
+            p.terminate()
+        deadline = time.time() + 30
+        for p in (worker, scheduler):
+            try:
+                p.wait(max(1, deadline - time.time()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
 
 
 def test_spectrum_npz_is_the_basis(corpus, tmp_path):
@@ -298,3 +346,40 @@ def test_k_is_clipped_to_the_vertices_in_faces(tmp_path):
         assert rows[0]["status"] == "ok", rows[0]["error"]
     with open(batch.outputs(out, "tet", "spectrum")[0]) as f:
         assert len(f.read().splitlines()) == 1 + 4
+
+
+FAULTS_OF_FRESH_BLOCKS = r"""
+import resource, sys
+import numpy as np
+from lapmesh import batch
+
+def faults():
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(20):
+        np.ones(1 << 19).sum()  # a 4 MiB block, allocated, touched and freed
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+before = faults()
+changed = batch.restore_adaptive_malloc()
+again = batch.restore_adaptive_malloc()
+faults()  # the heap grows once to hold such a block
+print(before, int(changed), int(again), faults())
+"""
+
+
+@pytest.mark.parametrize("variable", [True, False])
+def test_restore_adaptive_malloc(variable):
+    """A worker started with distributed's MALLOC_TRIM_THRESHOLD_ page-faults every large block
+    afresh; restore_adaptive_malloc (called by each task) makes such blocks reuse freed memory.
+    Without the variable it changes nothing."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+    if variable:
+        env["MALLOC_TRIM_THRESHOLD_"] = "65536"
+    r = subprocess.run([sys.executable, "-c", FAULTS_OF_FRESH_BLOCKS], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    before, changed, again, after = map(int, r.stdout.split())
+    assert (changed, again) == (int(variable), 0)
+    # With the variable and no fix every block faults all its pages afresh, so `after` stays near
+    # `before`; fixed, the blocks reuse freed heap memory.
+    # (Where the kernel backs the blocks with huge pages, both counts are small.)
+    assert after <= before / 10 + 100, (before, after)
