@@ -1,11 +1,13 @@
 // Operators: stiffness matrices and vertex areas against an independent halfedge-based
 // reference, invariants (symmetry, zero row sums, total area, linear precision, scale),
-// generic-mesh support (Polyhedron_3, removed elements, index maps, boundaries, components).
+// generic-mesh support (Polyhedron_3, removed elements, index maps, boundaries, components),
+// the uniform operator read off the graph's edges equal to the general path.
 #include "test_helpers.h"
 
 #include <lapmesh/laplacian.h>
 
 #include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/boost/graph/Euler_operations.h>
 
 #include <Eigen/Dense>
 
@@ -276,4 +278,102 @@ TEST(Operators, TopologyMarksNonManifoldEdgesAndMixedOrientation)
   EXPECT_EQ(t.num_edges, 5);
   EXPECT_EQ(t.num_boundary_edges, 4);
   EXPECT_EQ(lapmesh::internal::count_connected_components(t), 1);
+}
+
+namespace {
+
+// The uniform pencil read off the graph's edges and through the general path (extraction and
+// corner topology, which a vertex_index_map selects), compared entry for entry.
+template <typename Graph>
+void expect_uniform_paths_equal(const Graph& g, const std::string& what)
+{
+  Eigen::SparseMatrix<double> direct;
+  const bool taken = lapmesh::internal::with_default_vertex_rows(g, [&](auto rows) {
+    return lapmesh::internal::uniform_stiffness_from_edges(g, rows, get(CGAL::vertex_point, g), direct);
+  });
+  ASSERT_TRUE(taken) << what << ": the edge path declined";
+  auto rows = get(CGAL::dynamic_vertex_property_t<int>(), g);
+  int i = 0;
+  for(auto v : vertices(g)) put(rows, v, i++);
+  const auto fast = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform));
+  const auto general = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform).vertex_index_map(rows));
+  const Eigen::SparseMatrix<double>& edge_path = direct;
+  for(const Eigen::SparseMatrix<double>* W : {&edge_path, &fast.stiffness}) {
+    ASSERT_EQ(W->rows(), general.stiffness.rows()) << what;
+    ASSERT_EQ(W->nonZeros(), general.stiffness.nonZeros()) << what;
+    ASSERT_TRUE(W->isCompressed() && general.stiffness.isCompressed()) << what;
+    const Eigen::Index n = W->rows(), nnz = W->nonZeros();
+    EXPECT_TRUE(std::equal(W->outerIndexPtr(), W->outerIndexPtr() + n + 1, general.stiffness.outerIndexPtr())) << what;
+    EXPECT_TRUE(std::equal(W->innerIndexPtr(), W->innerIndexPtr() + nnz, general.stiffness.innerIndexPtr())) << what;
+    EXPECT_TRUE(std::equal(W->valuePtr(), W->valuePtr() + nnz, general.stiffness.valuePtr())) << what;
+  }
+  EXPECT_EQ(fast.mass, general.mass) << what;
+}
+
+} // namespace
+
+TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
+{
+  expect_uniform_paths_equal(to_mesh(lapmesh::icosphere(3)), "icosphere");
+  expect_uniform_paths_equal(to_mesh(lapmesh::plane_patch(9, 0.3)), "plane patch (boundary)");
+  expect_uniform_paths_equal(to_mesh<Polyhedron>(lapmesh::torus(20, 12)), "torus as a Polyhedron_3");
+
+  // Two components, a vertex in no face, and an edge in no face between two corners of the
+  // patch, linked into both corners' circulations through their border halfedges: it is no
+  // edge of the triangles.
+  Mesh m = to_mesh(lapmesh::plane_patch(5));
+  lapmesh::make_mesh(lapmesh::icosphere(1), m);
+  m.add_vertex(Point(5, 5, 5));
+  const Mesh::Halfedge_index chord = m.add_edge(Mesh::Vertex_index(0), Mesh::Vertex_index(24));
+  for(Mesh::Halfedge_index h : {chord, opposite(chord, m)}) {
+    Mesh::Halfedge_index in = Mesh::null_halfedge();
+    for(auto k : halfedges_around_target(target(h, m), m))
+      if(is_border(k, m)) in = k;
+    ASSERT_TRUE(in != Mesh::null_halfedge());
+    const Mesh::Halfedge_index out = next(in, m);
+    m.set_next(in, opposite(h, m));
+    m.set_next(h, out);
+  }
+  ASSERT_TRUE(m.is_valid(false));
+  expect_uniform_paths_equal(m, "components, a vertex in no face, an edge in no face");
+
+  // Removed elements not yet collected: the faces around a vertex, which goes with them.
+  Mesh holes = to_mesh(lapmesh::icosphere(2));
+  std::vector<Mesh::Halfedge_index> around;
+  for(auto h : halfedges_around_target(Mesh::Vertex_index(7), holes)) around.push_back(h);
+  for(auto h : around) CGAL::Euler::remove_face(h, holes);
+  ASSERT_TRUE(holes.has_garbage() && holes.is_removed(Mesh::Vertex_index(7)));
+  expect_uniform_paths_equal(holes, "removed elements");
+}
+
+TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
+{
+  const auto message = [](const Mesh& m, bool general) {
+    try {
+      if(general)
+        lapmesh::uniform_stiffness_matrix(m, CGAL::parameters::vertex_index_map(get(boost::vertex_index, m)));
+      else
+        lapmesh::uniform_stiffness_matrix(m);
+    } catch(const lapmesh::Mesh_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  Mesh nan_mesh = to_mesh(lapmesh::icosphere(1));
+  nan_mesh.point(Mesh::Vertex_index(3)) = Point(std::nan(""), 0, 0);
+  Mesh quad = to_mesh(lapmesh::plane_patch(3));
+  for(auto h : halfedges(quad))
+    if(!is_border_edge(h, quad)) {
+      CGAL::Euler::join_face(h, quad);
+      break;
+    }
+  Mesh no_faces;
+  no_faces.add_vertex(Point(0, 0, 0));
+  const std::vector<std::pair<const Mesh*, std::string>> cases = {
+    {&nan_mesh, "vertex 3 has a non-finite coordinate"}, {&quad, "is not a triangle"}, {&no_faces, "the mesh has no faces"}};
+  for(const auto& [m, expected] : cases) {
+    const std::string fast = message(*m, false);
+    EXPECT_NE(fast.find(expected), std::string::npos) << fast;
+    EXPECT_EQ(fast, message(*m, true));
+  }
 }

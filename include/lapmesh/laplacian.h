@@ -15,6 +15,7 @@
 #include <lapmesh/internal/geometry.h>
 #include <lapmesh/internal/laplacian_assembly.h>
 #include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/uniform_from_edges.h>
 #include <lapmesh/parameters.h>
 #include <lapmesh/types.h>
 
@@ -49,8 +50,13 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
                                   const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np);
   Laplacian_pencil out;
+  // The uniform operator needs no geometry: read straight off the graph's edges, unless
+  // a vertex_index_map may weld vertices.
+  if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
+    if(internal::choose_laplacian(np) == Laplacian::uniform && internal::uniform_pencil_from_edges(tm, np, out))
+      return out;
+  const auto mesh = internal::extract_mesh(tm, np);
   internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
                             internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
                             internal::choose_mollification(np));

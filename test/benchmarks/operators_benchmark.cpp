@@ -101,11 +101,16 @@ void BM_cotangent_vs_intrinsic(benchmark::State& state)
   state.counters["vertices"] = double(num_vertices(m));
 }
 
+// general = 0: the default, read off the halfedges; 1: the general path (extraction and corner
+// topology), which a vertex_index_map selects.
 void BM_uniform_laplacian(benchmark::State& state)
 {
   const Mesh& m = torus_mesh(int(state.range(0)));
+  const auto uniform = LP::laplacian(lapmesh::Laplacian::uniform);
   for(auto _ : state) {
-    auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform));
+    auto pencil = state.range(1) == 0
+                    ? lapmesh::laplacian_pencil(m, uniform)
+                    : lapmesh::laplacian_pencil(m, uniform.vertex_index_map(get(boost::vertex_index, m)));
     benchmark::DoNotOptimize(pencil.stiffness.valuePtr());
   }
 }
@@ -148,7 +153,10 @@ void sizes(benchmark::internal::Benchmark* b) { b->Arg(100)->Arg(316)->Arg(1000)
 } // namespace
 
 BENCHMARK(BM_extract_and_topology)->Apply(sizes);
-BENCHMARK(BM_uniform_laplacian)->Apply(sizes);
+BENCHMARK(BM_uniform_laplacian)
+  ->ArgsProduct({{100, 316, 1000}, {0, 1}})
+  ->ArgNames({"n", "general"})
+  ->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Sequential_tag)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_cotangent_stiffness_mixed_mass, CGAL::Parallel_if_available_tag)->Apply(sizes);
 BENCHMARK(BM_mean_curvature_only)->Apply(sizes);

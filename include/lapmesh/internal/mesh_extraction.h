@@ -177,6 +177,31 @@ struct Compacted_index_map
   friend Index get(const Compacted_index_map& m, const key_type& k) { return (*m.dense)[get(m.internal, k)]; }
 };
 
+/// Calls f(rows) with the default vertex numbering of `tm` (the position of each vertex in
+/// `vertices(tm)`) as a readable property map, and returns what f returns.
+template <typename TriangleMesh, typename F>
+decltype(auto) with_default_vertex_rows(const TriangleMesh& tm, F&& f)
+{
+  if constexpr(CGAL::graph_has_property<TriangleMesh, boost::vertex_index_t>::value) {
+    // The internal index (Surface_mesh: v.idx()) may have holes left by removed elements:
+    // compact it. (CGAL's dynamic maps on a const Surface_mesh are sized num_vertices() and
+    // indexed by idx(), which overflows when there is garbage, so they are not used here.)
+    auto internal = get(boost::vertex_index, tm);
+    std::size_t bound = 0;
+    for(auto v : vertices(tm)) bound = std::max<std::size_t>(bound, std::size_t(get(internal, v)) + 1);
+    std::vector<Index> dense(bound, -1);
+    Index i = 0;
+    for(auto v : vertices(tm)) dense[get(internal, v)] = i++;
+    return f(Compacted_index_map<decltype(internal)>{internal, &dense});
+  } else {
+    using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
+    auto dense = get(CGAL::dynamic_vertex_property_t<Index>(), tm);
+    Index i = 0;
+    for(vertex_descriptor v : vertices(tm)) put(dense, v, i++);
+    return f(dense);
+  }
+}
+
 /// Reads the positions and triangles of `tm` (named parameters: vertex_point_map,
 /// vertex_index_map). Throws Mesh_error on non-triangle faces and non-finite coordinates.
 template <typename TriangleMesh, typename NamedParameters>
@@ -188,28 +213,10 @@ Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const Name
 
   auto vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point),
                               get_const_property_map(CGAL::vertex_point, tm));
-  constexpr bool has_index_map =
-    !is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value;
-  if constexpr(has_index_map) {
+  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
     return read_with_index_map(tm, get_parameter(np, CGAL::internal_np::vertex_index), vpm);
-  } else if constexpr(CGAL::graph_has_property<TriangleMesh, boost::vertex_index_t>::value) {
-    // The internal index (Surface_mesh: v.idx()) may have holes left by removed elements:
-    // compact it. (CGAL's dynamic maps on a const Surface_mesh are sized num_vertices() and
-    // indexed by idx(), which overflows when there is garbage, so they are not used here.)
-    auto internal = get(boost::vertex_index, tm);
-    std::size_t bound = 0;
-    for(auto v : vertices(tm)) bound = std::max<std::size_t>(bound, std::size_t(get(internal, v)) + 1);
-    std::vector<Index> dense(bound, -1);
-    Index i = 0;
-    for(auto v : vertices(tm)) dense[get(internal, v)] = i++;
-    return read_with_index_map(tm, Compacted_index_map<decltype(internal)>{internal, &dense}, vpm);
-  } else {
-    using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
-    auto dense = get(CGAL::dynamic_vertex_property_t<Index>(), tm);
-    Index i = 0;
-    for(vertex_descriptor v : vertices(tm)) put(dense, v, i++);
-    return read_with_index_map(tm, dense, vpm);
-  }
+  else
+    return with_default_vertex_rows(tm, [&](auto rows) { return read_with_index_map(tm, rows, vpm); });
 }
 
 /// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,

@@ -1,0 +1,145 @@
+// Internal: the uniform stiffness W = A - D read straight off a halfedge graph's edges.
+//
+// Why: W needs the one-ring pattern only, no geometry. Its rows come from one pass over the
+// graph's edges into the compressed arrays: no face soup, no corner topology, no triplets.
+// The result equals the general path's (extract_mesh + build_topology) entry for entry; where
+// the graph holds something that path would name (two edges between the same vertices, a
+// loop), this one declines and the caller takes the general path, which reports it.
+#ifndef LAPMESH_INTERNAL_UNIFORM_FROM_EDGES_H
+#define LAPMESH_INTERNAL_UNIFORM_FROM_EDGES_H
+
+#include <lapmesh/errors.h>
+#include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/topology.h>
+#include <lapmesh/types.h>
+
+#include <CGAL/number_utils.h>
+
+#include <Eigen/SparseCore>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+/// Writes W for `tm` into `W` (rows numbered by `row_of`, which must give the vertices of
+/// `vertices(tm)` the rows 0, 1, ... in that order) and returns true; returns false, with `W`
+/// unspecified, where the general path must decide. Throws Mesh_error as extract_mesh does: a
+/// non-finite coordinate, a face that is not a triangle, no face, a face with a repeated vertex.
+/// A vertex in no face gets an empty row and column.
+///
+/// The rows are a counting sort of the edges by their ends: the graph's own arrays are read in
+/// storage order, and only vertex-sized arrays are written at random. (Circulating around each
+/// vertex instead jumps through the halfedges, which on a mesh of poor locality made this
+/// slower than the general path once the caches were cold.)
+template <typename TriangleMesh, typename RowMap, typename VertexPointMap>
+bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexPointMap vpm,
+                                  Eigen::SparseMatrix<double>& W)
+{
+  using GT = boost::graph_traits<TriangleMesh>;
+  Index n = 0;
+  for(typename GT::vertex_descriptor v : vertices(tm)) {
+    if(Index(get(row_of, v)) != n) return false;
+    const auto& p = get(vpm, v);
+    if(!std::isfinite(CGAL::to_double(p.x())) || !std::isfinite(CGAL::to_double(p.y())) ||
+       !std::isfinite(CGAL::to_double(p.z())))
+      throw Mesh_error("vertex " + std::to_string(n) + " has a non-finite coordinate", Mesh_error::Element::vertex, n);
+    ++n;
+  }
+
+  Index f_index = 0, non_triangle = -1, repeated = -1;
+  for(typename GT::face_descriptor f : faces(tm)) {
+    const typename GT::halfedge_descriptor h = halfedge(f, tm), h1 = next(h, tm), h2 = next(h1, tm);
+    if(next(h2, tm) != h) {
+      if(non_triangle < 0) non_triangle = f_index;
+    } else if(repeated < 0) {
+      const auto a = target(h, tm), b = target(h1, tm), c = target(h2, tm);
+      if(a == b || b == c || a == c) repeated = f_index;
+    }
+    ++f_index;
+  }
+  if(non_triangle >= 0)
+    throw Mesh_error("face " + std::to_string(non_triangle) + " is not a triangle", Mesh_error::Element::face,
+                     non_triangle);
+  if(f_index == 0) throw Mesh_error("the mesh has no faces");
+  if(repeated >= 0)
+    throw Mesh_error("face " + std::to_string(repeated) + " uses the same vertex twice", Mesh_error::Element::face,
+                     repeated);
+
+  // The ends of every edge in a face (an edge in no face is no edge of the triangles), and the
+  // number of such edges at each vertex, in outer[r + 1].
+  W.resize(n, n);
+  Index* outer = W.outerIndexPtr();
+  std::fill(outer, outer + n + 1, Index(0));
+  std::vector<Index> ends;
+  ends.reserve(2 * std::size_t(edges(tm).size()));
+  for(typename GT::edge_descriptor e : edges(tm)) {
+    const typename GT::halfedge_descriptor h = halfedge(e, tm);
+    if(is_border(h, tm) && is_border(opposite(h, tm), tm)) continue;
+    const Index a = Index(get(row_of, target(h, tm))), b = Index(get(row_of, source(h, tm)));
+    if(a == b) return false;  // a loop
+    ends.push_back(a);
+    ends.push_back(b);
+    ++outer[a + 1];
+    ++outer[b + 1];
+  }
+  // Row r: its neighbours and, when it has any, the diagonal.
+  for(Index r = 0; r < n; ++r) {
+    const Index degree = outer[r + 1];
+    if(std::size_t(outer[r]) + std::size_t(degree) + 1 > std::size_t(std::numeric_limits<Index>::max())) return false;
+    outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
+  }
+  W.resizeNonZeros(outer[n]);
+  Index* inner = W.innerIndexPtr();
+  double* value = W.valuePtr();
+  std::vector<Index> fill(outer, outer + n);
+  for(std::size_t k = 0; k < ends.size(); k += 2) {
+    inner[fill[std::size_t(ends[k])]++] = ends[k + 1];
+    inner[fill[std::size_t(ends[k + 1])]++] = ends[k];
+  }
+  for(Index r = 0; r < n; ++r) {
+    const Index begin = outer[r], end = outer[r + 1];
+    if(begin == end) continue;  // a vertex in no face
+    inner[end - 1] = r;
+    for(Index a = begin + 1; a < end; ++a) {  // rows hold ~7 entries
+      const Index key = inner[a];
+      Index b = a;
+      for(; b > begin && inner[b - 1] > key; --b) inner[b] = inner[b - 1];
+      inner[b] = key;
+    }
+    for(Index a = begin; a < end; ++a) {
+      if(a > begin && inner[a - 1] == inner[a]) return false;  // two edges between the same vertices
+      value[a] = inner[a] == r ? -double(end - begin - 1) : 1.0;
+    }
+  }
+  return true;
+}
+
+/// The uniform pencil (W, the degrees) of `tm` by uniform_stiffness_from_edges() on the
+/// default vertex numbering; false where that declines. Named parameters: vertex_point_map.
+/// A vertex in no face gets mass 0, as on the general path. On false `out` is left empty.
+template <typename TriangleMesh, typename NamedParameters>
+bool uniform_pencil_from_edges(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
+{
+  const auto vpm = CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_point),
+                                                      get_const_property_map(CGAL::vertex_point, tm));
+  if(!with_default_vertex_rows(tm, [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, out.stiffness); })) {
+    out.stiffness = Eigen::SparseMatrix<double>();  // no half-written pattern for the general path
+    return false;
+  }
+  const Index n = Index(out.stiffness.rows());
+  const Index* outer = out.stiffness.outerIndexPtr();
+  out.mass.resize(n);
+  for(Index r = 0; r < n; ++r) out.mass[r] = std::max(outer[r + 1] - outer[r] - 1, 0);
+  return true;
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif
