@@ -377,3 +377,42 @@ TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
     EXPECT_EQ(fast, message(*m, true));
   }
 }
+
+TEST(Operators, CornerTopologyEqualsTheFullOne)
+{
+  using lapmesh::internal::build_corner_topology;
+  using lapmesh::internal::build_topology;
+  auto flat = [](const lapmesh::Triangle_soup& soup) {
+    std::vector<int> tri;
+    for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
+    return std::make_pair(int(soup.points.size()), tri);
+  };
+  lapmesh::Triangle_soup two = lapmesh::plane_patch(7, 0.3);
+  const auto sphere = lapmesh::icosphere(1);
+  const int offset = int(two.points.size());
+  for(const auto& f : sphere.triangles) two.triangles.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
+  two.points.insert(two.points.end(), sphere.points.begin(), sphere.points.end());
+  std::vector<std::pair<int, std::vector<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
+                                                         flat(lapmesh::plane_patch(6)), flat(two)};
+  for(const auto& [n, tri] : cases) {
+    const auto full = build_topology(n, tri), corners = build_corner_topology(n, tri);
+    EXPECT_TRUE(full.has_pattern());
+    EXPECT_FALSE(corners.has_pattern());
+    EXPECT_TRUE(corners.manifold);
+    EXPECT_EQ(corners.triangles, full.triangles);
+    EXPECT_EQ(corners.corner_begin, full.corner_begin);
+    EXPECT_EQ(corners.vertex_corners, full.vertex_corners);
+    EXPECT_EQ(corners.on_boundary, full.on_boundary);
+    EXPECT_EQ(corners.num_edges, full.num_edges);
+    EXPECT_EQ(corners.num_boundary_edges, full.num_boundary_edges);
+  }
+  EXPECT_GT(build_corner_topology(cases[2].first, cases[2].second).num_boundary_edges, 0);
+  // Non-manifold (three faces on an edge; opposite orientations): the full topology, with the fan.
+  for(const auto& [n, tri] : {std::make_pair(5, std::vector<int>{0, 1, 2, 1, 0, 3, 0, 1, 4}),
+                              std::make_pair(4, std::vector<int>{0, 1, 2, 0, 1, 3})}) {
+    const auto t = build_corner_topology(n, tri);
+    EXPECT_TRUE(t.has_pattern());
+    EXPECT_FALSE(t.manifold);
+    EXPECT_EQ(t.fan_slot, build_topology(n, tri).fan_slot);
+  }
+}

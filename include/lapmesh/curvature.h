@@ -271,7 +271,11 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gaussian_curvature_map,
                                 const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np);
+  // The angle deficit needs the corners only; the intrinsic triangulation flips edges of the pattern.
+  const auto mesh = internal::extract_mesh(tm, np,
+                                           internal::choose_laplacian(np) == Laplacian::intrinsic_delaunay
+                                             ? internal::Topology_detail::pattern
+                                             : internal::Topology_detail::corners);
   const Eigen::VectorXd K = internal::compute_gaussian_curvature_only(
     mesh.topology, mesh.positions, internal::choose_laplacian(np), internal::choose_vertex_area(np),
     internal::is_parallel<ConcurrencyTag>(), internal::choose_mollification(np));

@@ -92,7 +92,7 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 Eigen::VectorXd vertex_areas(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np);
+  const auto mesh = internal::extract_mesh(tm, np, internal::Topology_detail::corners);
   return mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
                                              internal::is_parallel<ConcurrencyTag>()),
                       0.0);
@@ -104,7 +104,7 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_vertex_areas(const TriangleMesh& tm, VertexAreaMap area_map,
                           const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np);
+  const auto mesh = internal::extract_mesh(tm, np, internal::Topology_detail::corners);
   internal::write_row_values(mesh.vertex_rows,
                              mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions,
                                                                  internal::choose_vertex_area(np),

@@ -219,12 +219,22 @@ Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const Name
     return with_default_vertex_rows(tm, [&](auto rows) { return read_with_index_map(tm, rows, vpm); });
 }
 
+/// How much of the topology an extraction builds: the sparsity pattern and its edge slots
+/// (every operator), or the corners alone (build_corner_topology(): angles, areas and their
+/// gathers).
+enum class Topology_detail { pattern, corners };
+
 /// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
 /// vertex_index_map), over the rows that are in a face. Throws Mesh_error on non-triangle
 /// faces, non-finite coordinates, a face with a repeated vertex, and a mesh with no face.
 template <typename TriangleMesh, typename NamedParameters>
-Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np)
+Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
+                                          Topology_detail detail = Topology_detail::pattern)
 {
+  const auto topology = [detail](Index n, std::vector<Index>&& triangles) {
+    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles))
+                                              : build_corner_topology(n, std::move(triangles));
+  };
   Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np);
   Extracted_mesh<TriangleMesh> out;
   const Index n = Index(arrays.vertices.size());
@@ -238,7 +248,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   for(Index r = 0; r < n; ++r)
     if(topology_vertex[r] == 0) topology_vertex[r] = used++;
   if(used == n) {
-    out.topology = build_topology(n, std::move(arrays.triangles));
+    out.topology = topology(n, std::move(arrays.triangles));
     out.positions = std::move(arrays.positions);
     out.vertices = std::move(arrays.vertices);
     return out;
@@ -254,7 +264,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
       out.vertices[topology_vertex[r]] = arrays.vertices[r];
     }
   for(Index& v : arrays.triangles) v = topology_vertex[v];
-  out.topology = build_topology(used, std::move(arrays.triangles));
+  out.topology = topology(used, std::move(arrays.triangles));
   return out;
 }
 

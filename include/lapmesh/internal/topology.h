@@ -135,15 +135,16 @@ struct Mesh_topology
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
 
   Index num_nonzeros() const { return static_cast<Index>(inner.size()); }
+  /// False for a topology of corners only (build_corner_topology()): no pattern, no slots.
+  bool has_pattern() const { return !outer.empty(); }
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
 };
 
-/// Builds the topology from a triangle list over vertices 0..n-1.
-/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
-/// in no face. An edge with two faces on the same side (three or more faces around an edge,
-/// or two neighbouring faces with opposite orientations) makes the topology non-manifold
-/// (`manifold` false, the edge in `edge_fans`).
-inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles)
+/// The part of every topology that a pass over the corners needs: the triangles, checked, and
+/// each vertex's incident corners, by a counting sort (ascending corner index per vertex).
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex in
+/// no face.
+inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles)
 {
   Mesh_topology t;
   t.num_vertices = num_vertices;
@@ -163,7 +164,6 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
                        Mesh_error::Element::face, f);
   }
 
-  // Vertex -> incident corners, by a counting sort.
   t.corner_begin.assign(n + 1, 0);
   for(Index c = 0; c < 3 * m; ++c) ++t.corner_begin[tri[c] + 1];
   for(Index v = 0; v < n; ++v) {
@@ -177,6 +177,19 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     std::vector<Index> fill(t.corner_begin.begin(), t.corner_begin.end() - 1);
     for(Index c = 0; c < 3 * m; ++c) t.vertex_corners[fill[tri[c]]++] = c;
   }
+  return t;
+}
+
+/// Builds the topology from a triangle list over vertices 0..n-1.
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
+/// in no face. An edge with two faces on the same side (three or more faces around an edge,
+/// or two neighbouring faces with opposite orientations) makes the topology non-manifold
+/// (`manifold` false, the edge in `edge_fans`).
+inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles)
+{
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles));
+  const Index n = num_vertices;
+  const std::vector<Index>& tri = t.triangles;
 
   // Rows of the one-ring pattern. Each incident corner of i contributes two halfedges:
   // i->q (its face's halfedge leaving i, opposite the corner at r) and r->i (opposite q).
@@ -242,6 +255,64 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     }
     if(!diagonal_done) emit_diagonal();
     t.outer[i + 1] = static_cast<Index>(t.inner.size());
+  }
+  return t;
+}
+
+/// The topology that per-corner passes and their gathers need (angles, areas, Gaussian
+/// curvature): build_corner_incidence(), the boundary vertices and the edge counts, without
+/// the sparsity pattern and its slots (has_pattern() false), which cost most of
+/// build_topology(). Every field it fills equals build_topology()'s. A non-manifold mesh gets
+/// the full topology, whose edge fans name the edge in require_manifold()'s message.
+inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles)
+{
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles));
+  const Index n = num_vertices;
+  const std::vector<Index>& tri = t.triangles;
+  t.on_boundary.assign(n, 0);
+  // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
+  // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
+  // side of an edge) is what build_topology calls non-manifold.
+  std::vector<Index> out, in;
+  auto insertion_sort = [](std::vector<Index>& v) {
+    for(std::size_t a = 1; a < v.size(); ++a) {
+      const Index key = v[a];
+      std::size_t b = a;
+      for(; b > 0 && v[b - 1] > key; --b) v[b] = v[b - 1];
+      v[b] = key;
+    }
+  };
+  for(Index i = 0; i < n; ++i) {
+    out.clear();
+    in.clear();
+    for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
+      const Index c = t.vertex_corners[k];
+      out.push_back(tri[next_corner(c)]);
+      in.push_back(tri[prev_corner(c)]);
+    }
+    insertion_sort(out);
+    insertion_sort(in);
+    for(const std::vector<Index>* side : {&out, &in})
+      if(std::adjacent_find(side->begin(), side->end()) != side->end()) return build_topology(n, std::move(t.triangles));
+    std::size_t a = 0, b = 0;
+    while(a < out.size() || b < in.size()) {
+      Index j;
+      bool both = false;
+      if(b == in.size() || (a < out.size() && out[a] < in[b])) {
+        j = out[a++];
+      } else if(a == out.size() || in[b] < out[a]) {
+        j = in[b++];
+      } else {
+        j = out[a++];
+        ++b;
+        both = true;
+      }
+      if(!both) {
+        t.on_boundary[i] = 1;
+        if(j > i) ++t.num_boundary_edges;
+      }
+      if(j > i) ++t.num_edges;
+    }
   }
   return t;
 }
