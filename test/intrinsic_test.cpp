@@ -411,7 +411,7 @@ TEST(IntrinsicDelaunay, FacesStoredApartAndWeldedGiveTheMeshsOperators)
   for(auto v : vertices(apart)) {
     const auto expected = whole_smoothed.point(Mesh::Vertex_index(weld[v]));
     EXPECT_LT(CGAL::squared_distance(apart.point(v), expected), 1e-20) << "copy " << v << " of " << weld[v];
-    if(weld[v] == 0) EXPECT_EQ(apart.point(v), origin);
+    if(weld[v] == 0) { EXPECT_EQ(apart.point(v), origin); }
   }
 }
 

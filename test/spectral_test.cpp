@@ -212,8 +212,8 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
       const Eigen::VectorXd rhs = Eigen::VectorXd::Random(mS.rows());
       const Eigen::VectorXd x = ldlt.solve(rhs);
       EXPECT_LT((shifted.selfadjointView<Eigen::Lower>() * x - rhs).norm(), 1e-8 * rhs.norm() * (1 + x.norm())) << tau;
-      if(tau < 0) EXPECT_EQ(ldlt.negative_pivots(), 0);
-      if(tau > 100 * lambda_scale) EXPECT_GT(ldlt.negative_pivots(), 5);
+      if(tau < 0) { EXPECT_EQ(ldlt.negative_pivots(), 0); }
+      if(tau > 100 * lambda_scale) { EXPECT_GT(ldlt.negative_pivots(), 5); }
     }
   }
   // The structure of an analysis alone serves as well.
@@ -425,7 +425,7 @@ TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
           EXPECT_GT(exact[h] - exact[h - 1], 1e-6 * exact[h]) << what;
           EXPECT_EQ(eigenvalues_below(pencil, 0.5 * (exact[h - 1] + exact[h])), h) << what;
         }
-        if(k < c) EXPECT_TRUE(b.splits_eigenspace(k)) << what;
+        if(k < c) { EXPECT_TRUE(b.splits_eigenspace(k)) << what; }
       }
   }
 }
