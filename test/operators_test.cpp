@@ -393,7 +393,9 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   for(const auto& f : sphere.triangles) two.triangles.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
   two.points.insert(two.points.end(), sphere.points.begin(), sphere.points.end());
   std::vector<std::pair<int, std::vector<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
-                                                         flat(lapmesh::plane_patch(6)), flat(two)};
+                                                         flat(lapmesh::plane_patch(6)), flat(two),
+                                                         // two triangles that share a vertex only
+                                                         {5, {0, 1, 2, 0, 3, 4}}};
   for(const auto& [n, tri] : cases) {
     const auto full = build_topology(n, tri), corners = build_corner_topology(n, tri);
     EXPECT_TRUE(full.has_pattern());

@@ -272,48 +272,36 @@ inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index
   t.on_boundary.assign(n, 0);
   // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
   // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
-  // side of an edge) is what build_topology calls non-manifold.
-  std::vector<Index> out, in;
-  auto insertion_sort = [](std::vector<Index>& v) {
-    for(std::size_t a = 1; a < v.size(); ++a) {
-      const Index key = v[a];
-      std::size_t b = a;
-      for(; b > 0 && v[b - 1] > key; --b) v[b] = v[b - 1];
-      v[b] = key;
-    }
-  };
+  // side of an edge) is what build_topology calls non-manifold. Each neighbour is stamped with
+  // the vertex that saw it last, so no per-vertex list is sorted or cleared.
+  std::vector<Index> out_seen(n, -1), in_seen(n, -1);
+  Index edges = 0, boundary_edges = 0;
   for(Index i = 0; i < n; ++i) {
-    out.clear();
-    in.clear();
-    for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
-      const Index c = t.vertex_corners[k];
-      out.push_back(tri[next_corner(c)]);
-      in.push_back(tri[prev_corner(c)]);
+    const Index begin = t.corner_begin[i], end = t.corner_begin[i + 1];
+    Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
+    for(Index k = begin; k < end; ++k) {
+      const Index j = tri[next_corner(t.vertex_corners[k])];
+      if(out_seen[j] == i) return build_topology(n, std::move(t.triangles));
+      out_seen[j] = i;
+      out_above += j > i;
     }
-    insertion_sort(out);
-    insertion_sort(in);
-    for(const std::vector<Index>* side : {&out, &in})
-      if(std::adjacent_find(side->begin(), side->end()) != side->end()) return build_topology(n, std::move(t.triangles));
-    std::size_t a = 0, b = 0;
-    while(a < out.size() || b < in.size()) {
-      Index j;
-      bool both = false;
-      if(b == in.size() || (a < out.size() && out[a] < in[b])) {
-        j = out[a++];
-      } else if(a == out.size() || in[b] < out[a]) {
-        j = in[b++];
+    for(Index k = begin; k < end; ++k) {
+      const Index j = tri[prev_corner(t.vertex_corners[k])];
+      if(in_seen[j] == i) return build_topology(n, std::move(t.triangles));
+      in_seen[j] = i;
+      if(out_seen[j] == i) {
+        ++both;
+        both_above += j > i;
       } else {
-        j = out[a++];
-        ++b;
-        both = true;
+        in_only_above += j > i;
       }
-      if(!both) {
-        t.on_boundary[i] = 1;
-        if(j > i) ++t.num_boundary_edges;
-      }
-      if(j > i) ++t.num_edges;
     }
+    if(both != end - begin) t.on_boundary[i] = 1;
+    edges += out_above + in_only_above;
+    boundary_edges += out_above - both_above + in_only_above;
   }
+  t.num_edges = edges;
+  t.num_boundary_edges = boundary_edges;
   return t;
 }
 
