@@ -6,7 +6,6 @@
 #include <lapmesh/io.h>
 
 #include <cstdlib>
-#include <fstream>
 
 using namespace lapmesh_test;
 

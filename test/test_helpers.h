@@ -130,15 +130,11 @@ struct Cli_result
   std::string out, err;
 };
 
-/// Whether the CPU has AVX2 (AVX-512 implies it), from /proc/cpuinfo.
+/// Whether the CPU has AVX2 or AVX-512, asked as lapmesh::blas_core_warning() asks it.
 inline bool cpu_has_avx2()
 {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while(std::getline(in, line))
-    if(line.rfind("flags", 0) == 0)
-      return line.find(" avx2") != std::string::npos || line.find(" avx512f") != std::string::npos;
-  return false;
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") || __builtin_cpu_supports("avx512f");
 }
 
 /// Runs the lapmesh executable with `args` (shell words, as typed after `lapmesh`), capturing

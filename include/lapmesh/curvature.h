@@ -272,12 +272,13 @@ void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gauss
                                 const NamedParameters& np = CGAL::parameters::default_values())
 {
   // The angle deficit needs the corners only; the intrinsic triangulation flips edges of the pattern.
+  const Laplacian laplacian = internal::choose_laplacian(np);
   const auto mesh = internal::extract_mesh(tm, np,
-                                           internal::choose_laplacian(np) == Laplacian::intrinsic_delaunay
+                                           laplacian == Laplacian::intrinsic_delaunay
                                              ? internal::Topology_detail::pattern
                                              : internal::Topology_detail::corners);
   const Eigen::VectorXd K = internal::compute_gaussian_curvature_only(
-    mesh.topology, mesh.positions, internal::choose_laplacian(np), internal::choose_vertex_area(np),
+    mesh.topology, mesh.positions, laplacian, internal::choose_vertex_area(np),
     internal::is_parallel<ConcurrencyTag>(), internal::choose_mollification(np));
   internal::write_row_values(mesh.vertex_rows, mesh.to_rows(K, std::numeric_limits<double>::quiet_NaN()),
                              gaussian_curvature_map);
