@@ -46,6 +46,7 @@ const state = {
   mesh: null,          // id
   geometry: null,      // { header, positions: Float64Array, indices: Uint32Array }
   scalars: null,       // { header, values: Float64Array, colors: Uint8Array }
+  scalarsAsked: 0,     // the latest scalars request: an earlier one answering later is stale
   colormaps: null,     // name -> Uint8 RGB x 256
   busy: false,
   op: null,            // the running operation: { mesh, op, requestId }
@@ -299,6 +300,7 @@ function setQuantities(names, preferred) {
 }
 
 async function loadScalars() {
+  const asked = ++state.scalarsAsked;
   if (!state.mesh || $('quantity').options.length === 0) {
     state.scalars = null;
     applyColors(); drawColorbar();
@@ -306,7 +308,8 @@ async function loadScalars() {
   }
   const mesh = state.mesh;
   const f = await getFrame(`/api/meshes/${mesh}/scalars?${colourQuery()}`);
-  if (state.mesh !== mesh) return;  // the user picked another mesh meanwhile
+  // Another mesh picked, or newer settings asked for, meanwhile (answers may come out of order).
+  if (state.mesh !== mesh || asked !== state.scalarsAsked) return;
   state.scalars = { header: f.header, values: f.buffers.values, colors: f.buffers.colors };
   applyColors();
   drawColorbar();
