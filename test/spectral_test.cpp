@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 using namespace lapmesh_test;
@@ -238,6 +239,57 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
   llt.compute(K);
   lapmesh::internal::Supernodal_ldlt ldlt(*llt.factor());
   EXPECT_FALSE(ldlt.factorize(ldlt.permuted_lower(mS), Eigen::VectorXd(mS.diagonal()), 1.0));
+}
+#endif
+
+#ifdef LAPMESH_HAS_CHOLMOD
+TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
+{
+  // The shift-invert operator y = D K^-1 D x by lapmesh's row-wise supernodal kernels (blocks of
+  // 2 to 8 columns) and by CHOLMOD's solves (1 column, and more than 8) against Eigen's simplicial
+  // LL^T, on meshes whose supernodes range from one column to large separators; and the kernels'
+  // baseline and AVX2 builds against each other where the CPU has AVX2.
+  Mesh elephant;
+  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
+    const auto pencil = lapmesh::laplacian_pencil(m);
+    Eigen::SparseMatrix<double> K = -pencil.stiffness;
+    K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
+    lapmesh::internal::Cholmod_supernodal_llt llt;
+    llt.compute(K);
+    ASSERT_EQ(llt.info(), Eigen::Success);
+    const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower> simplicial(K);
+    ASSERT_EQ(simplicial.info(), Eigen::Success);
+    const Eigen::VectorXd scale = pencil.mass.cwiseSqrt();
+    for(int width : {1, 2, 3, 4, 5, 6, 7, 8, 11}) {
+      const Eigen::MatrixXd X = Eigen::MatrixXd::Random(K.rows(), width);
+      Eigen::MatrixXd Y;
+      llt.scaled_solve(scale, X, Y);
+      const Eigen::MatrixXd expected =
+        scale.asDiagonal() * Eigen::MatrixXd(simplicial.solve(Eigen::MatrixXd(scale.asDiagonal() * X)));
+      ASSERT_EQ(Y.rows(), K.rows());
+      ASSERT_EQ(Y.cols(), width);
+      EXPECT_LT((Y - expected).cwiseAbs().maxCoeff(), 1e-10 * expected.cwiseAbs().maxCoeff()) << width;
+    }
+#ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
+    if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+      const cholmod_factor& L = *llt.factor();
+      lapmesh::internal::Supernodal_factor_view view;
+      view.super = static_cast<const int*>(L.super);
+      view.pi = static_cast<const int*>(L.pi);
+      view.px = static_cast<const int*>(L.px);
+      view.rows = static_cast<const int*>(L.s);
+      view.nsuper = L.nsuper;
+      view.values = static_cast<const double*>(L.x);
+      const Eigen::MatrixXd B = Eigen::MatrixXd::Random(4, K.rows());  // 4 values per row, side by side
+      Eigen::MatrixXd baseline = B, avx2 = B;
+      lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), 4);
+      lapmesh::internal::supernodal_kernels::solve_avx2(view, avx2.data(), 4);
+      EXPECT_LT((baseline - avx2).cwiseAbs().maxCoeff(), 1e-12 * baseline.cwiseAbs().maxCoeff());
+      EXPECT_GT(baseline.cwiseAbs().maxCoeff(), 0.0);
+    }
+#endif
+  }
 }
 #endif
 
@@ -471,6 +523,30 @@ TEST(Spectral, BlockLanczosAndSpectraAgree)
       EXPECT_LT(r.norm(), 1e-7 * a.eigenvalues()[j] * pencil.mass.cwiseProduct(Phi.col(j)).norm()) << which << " " << j;
     }
   }
+}
+
+TEST(Spectral, TallProductsInRowPanelsEqualEigenProducts)
+{
+  // This executable links the BLAS (LAPMESH_HAS_BLAS with CHOLMOD): the products of a tall basis
+  // with a thin block run in row panels of the BLAS, on slices with an outer stride, over a
+  // height that is not a multiple of the panel; beta = 0 must not read C.
+  using Eigen::MatrixXd;
+  const Eigen::Index n = 5000 + 37;
+  const MatrixXd big = MatrixXd::Random(n, 12), W = MatrixXd::Random(n, 3);
+  const auto V = big.middleCols(2, 7);
+  MatrixXd C(7, 3);
+  C.setConstant(std::numeric_limits<double>::quiet_NaN());
+  lapmesh::internal::panel_product_tn(V, W, C);
+  const MatrixXd C_ref = V.transpose() * W;
+  EXPECT_LE((C - C_ref).cwiseAbs().maxCoeff(), 1e-12 * C_ref.cwiseAbs().maxCoeff());
+  MatrixXd W2 = W;
+  lapmesh::internal::panel_subtract_product(V, C, W2);
+  EXPECT_LE((W2 - (W - V * C)).cwiseAbs().maxCoeff(), 1e-12 * double(n));
+  MatrixXd Y(n, 4);
+  Y.setConstant(std::numeric_limits<double>::quiet_NaN());
+  const MatrixXd Z = MatrixXd::Random(7, 4);
+  lapmesh::internal::panel_product_nn(V, Z, Y);
+  EXPECT_LE((Y - V * Z).cwiseAbs().maxCoeff(), 1e-12);
 }
 
 TEST(Spectral, BlockLanczosOnKnownSpectra)

@@ -24,11 +24,13 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
+#include <lapmesh/internal/supernodal_solve.h>
+
 #include <dlfcn.h>
 
 #include <cstddef>
-
 #include <string>
+#include <vector>
 
 namespace lapmesh {
 namespace internal {
@@ -144,13 +146,33 @@ public:
     return *this;
   }
   /// Y = D K^-1 D X for a diagonal D = diag(scale) (the shift-invert operator of a standardised
-  /// pencil). CHOLMOD's solve allocates its result and work space at every call and permutes
-  /// blocks of more than a few columns slowly; here the rows are gathered, scaled, into a buffer
-  /// kept between calls, and the two supernodal triangular solves run in place on it.
+  /// pencil). CHOLMOD's solve allocates its result and work space at every call, permutes blocks
+  /// of more than a few columns slowly, and calls the BLAS on every small supernode. Here the
+  /// rows are gathered, scaled, into a buffer kept between calls; blocks of up to 8 columns are
+  /// solved by lapmesh's supernodal kernels (internal/supernodal_solve.h), wider ones by
+  /// CHOLMOD's two supernodal triangular solves in place.
   void scaled_solve(const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) const
   {
     const Eigen::Index n = X.rows(), nrhs = X.cols();
     const int* perm = permutation();
+    Y.resize(n, nrhs);
+    if(nrhs >= 2 && std::size_t(nrhs) <= supernodal_solve_max_width) {  // one column: memory bound either way
+      const std::size_t width = std::size_t(nrhs);
+      m_rows.resize(std::size_t(n) * width);
+      for(Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::Index p = perm[i];
+        double* row = m_rows.data() + std::size_t(i) * width;
+        for(Eigen::Index j = 0; j < nrhs; ++j) row[j] = scale[p] * X(p, j);
+      }
+      supernodal_llt_solve_rows(factor_view(), m_rows.data(), width);
+      for(Eigen::Index i = 0; i < n; ++i) {
+        const Eigen::Index p = perm[i];
+        const double* row = m_rows.data() + std::size_t(i) * width;
+        for(Eigen::Index j = 0; j < nrhs; ++j) Y(p, j) = scale[p] * row[j];
+      }
+      return;
+    }
+    // Wider blocks: CHOLMOD's supernodal solves, in place on a kept buffer.
     m_rhs.resize(n, nrhs);
     for(Eigen::Index j = 0; j < nrhs; ++j)
       for(Eigen::Index i = 0; i < n; ++i) m_rhs(i, j) = scale[perm[i]] * X(perm[i], j);
@@ -159,7 +181,6 @@ public:
     cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
     cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common);
     cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
-    Y.resize(n, nrhs);
     for(Eigen::Index j = 0; j < nrhs; ++j)
       for(Eigen::Index i = 0; i < n; ++i) Y(perm[i], j) = scale[perm[i]] * m_rhs(i, j);
   }
@@ -178,6 +199,18 @@ public:
   }
 
 private:
+  Supernodal_factor_view factor_view() const
+  {
+    const cholmod_factor& L = *m_cholmodFactor;
+    Supernodal_factor_view view;
+    view.super = static_cast<const int*>(L.super);
+    view.pi = static_cast<const int*>(L.pi);
+    view.px = static_cast<const int*>(L.px);
+    view.rows = static_cast<const int*>(L.s);
+    view.nsuper = L.nsuper;
+    view.values = static_cast<const double*>(L.x);
+    return view;
+  }
   static cholmod_dense dense_view(Eigen::MatrixXd& M)
   {
     cholmod_dense d{};
@@ -190,7 +223,8 @@ private:
     d.dtype = CHOLMOD_DOUBLE;
     return d;
   }
-  mutable Eigen::MatrixXd m_rhs, m_work;  // scaled_solve()'s buffers
+  mutable std::vector<double> m_rows;        // scaled_solve()'s narrow blocks, row by row
+  mutable Eigen::MatrixXd m_rhs, m_work;     // its wide blocks, for CHOLMOD
 };
 
 } // namespace internal
