@@ -24,6 +24,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
+#include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/supernodal_solve.h>
 
 #include <dlfcn.h>
@@ -137,6 +138,7 @@ public:
   void factorize(const MatrixType& A)
   {
     Serial_openmp_scope serial;
+    Subnormals_flushed_scope flushed;
     Base::factorize(A);
   }
   Cholmod_supernodal_llt& compute(const MatrixType& A)

@@ -14,6 +14,7 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/cholmod.h>
 #include <lapmesh/internal/parallel.h>
+#include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/topology.h>
 
 #include <Eigen/Core>
@@ -200,7 +201,10 @@ public:
       return false;
     }
 #endif
-    m_ldlt.factorize(A);
+    {
+      Subnormals_flushed_scope flushed;  // as CHOLMOD's factorize() does
+      m_ldlt.factorize(A);
+    }
     if(m_ldlt.info() == Eigen::Success && m_ldlt.vectorD().minCoeff() > 0) return true;
     m_failure = "Eigen's LDL^T found a pivot <= 0";
     return false;
@@ -216,6 +220,7 @@ public:
       X = x;
       return true;
     }
+    Subnormals_flushed_scope flushed;
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
       X = m_chol.solve(B);
