@@ -273,14 +273,7 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
     }
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
     if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-      const cholmod_factor& L = *llt.factor();
-      lapmesh::internal::Supernodal_factor_view view;
-      view.super = static_cast<const int*>(L.super);
-      view.pi = static_cast<const int*>(L.pi);
-      view.px = static_cast<const int*>(L.px);
-      view.rows = static_cast<const int*>(L.s);
-      view.nsuper = L.nsuper;
-      view.values = static_cast<const double*>(L.x);
+      const lapmesh::internal::Supernodal_factor_view view = llt.factor_view();
       const Eigen::MatrixXd B = Eigen::MatrixXd::Random(4, K.rows());  // 4 values per row, side by side
       Eigen::MatrixXd baseline = B, avx2 = B;
       lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), 4);

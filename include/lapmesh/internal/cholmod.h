@@ -191,16 +191,7 @@ public:
   /// no longer needed (it must factorize() again before the next solve).
   double* values_to_overwrite() { return static_cast<double*>(m_cholmodFactor->x); }
 
-  /// CHOLMOD's factor (its supernodal structure and ordering; nullptr before analyzePattern).
-  const cholmod_factor* factor() const { return m_cholmodFactor; }
-  /// The fill-reducing ordering: row i of the factor is row perm[i] of the matrix (nullptr
-  /// before analyzePattern).
-  const int* permutation() const
-  {
-    return m_cholmodFactor ? static_cast<const int*>(m_cholmodFactor->Perm) : nullptr;
-  }
-
-private:
+  /// The factor's supernodes and values, for lapmesh's supernodal kernels (after factorize()).
   Supernodal_factor_view factor_view() const
   {
     const cholmod_factor& L = *m_cholmodFactor;
@@ -213,6 +204,16 @@ private:
     view.values = static_cast<const double*>(L.x);
     return view;
   }
+  /// CHOLMOD's factor (its supernodal structure and ordering; nullptr before analyzePattern).
+  const cholmod_factor* factor() const { return m_cholmodFactor; }
+  /// The fill-reducing ordering: row i of the factor is row perm[i] of the matrix (nullptr
+  /// before analyzePattern).
+  const int* permutation() const
+  {
+    return m_cholmodFactor ? static_cast<const int*>(m_cholmodFactor->Perm) : nullptr;
+  }
+
+private:
   static cholmod_dense dense_view(Eigen::MatrixXd& M)
   {
     cholmod_dense d{};
