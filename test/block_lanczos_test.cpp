@@ -13,7 +13,7 @@ TEST(BlockLanczos, EigenFallbackProductsAndEigenpairs)
   FAIL() << "this test must be built without LAPMESH_HAS_BLAS";
 #endif
   using Eigen::MatrixXd;
-  const Eigen::Index n = 5000;  // several row panels
+  const Eigen::Index n = 20000;  // several row panels (of 65536 / 7 rows)
   const MatrixXd big = MatrixXd::Random(n, 12), W = MatrixXd::Random(n, 3);
   const auto V = big.middleCols(2, 7);  // a block with an outer stride, as the basis slices are
   MatrixXd C(7, 3);

@@ -150,41 +150,33 @@ public:
   /// Y = D K^-1 D X for a diagonal D = diag(scale) (the shift-invert operator of a standardised
   /// pencil). CHOLMOD's solve allocates its result and work space at every call, permutes blocks
   /// of more than a few columns slowly, and calls the BLAS on every small supernode. Here the
-  /// rows are gathered, scaled, into a buffer kept between calls; blocks of up to 8 columns are
-  /// solved by lapmesh's supernodal kernels (internal/supernodal_solve.h), wider ones by
-  /// CHOLMOD's two supernodal triangular solves in place.
+  /// rows are gathered, scaled, into a buffer kept between calls; blocks of 2 to 8 columns are
+  /// solved by lapmesh's supernodal kernels (internal/supernodal_solve.h), others by CHOLMOD's
+  /// two supernodal triangular solves in place.
   void scaled_solve(const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) const
   {
     const Eigen::Index n = X.rows(), nrhs = X.cols();
     const int* perm = permutation();
-    Y.resize(n, nrhs);
-    if(nrhs >= 2 && std::size_t(nrhs) <= supernodal_solve_max_width) {  // one column: memory bound either way
-      const std::size_t width = std::size_t(nrhs);
-      m_rows.resize(std::size_t(n) * width);
-      for(Eigen::Index i = 0; i < n; ++i) {
-        const Eigen::Index p = perm[i];
-        double* row = m_rows.data() + std::size_t(i) * width;
-        for(Eigen::Index j = 0; j < nrhs; ++j) row[j] = scale[p] * X(p, j);
-      }
-      supernodal_llt_solve_rows(factor_view(), m_rows.data(), width);
-      for(Eigen::Index i = 0; i < n; ++i) {
-        const Eigen::Index p = perm[i];
-        const double* row = m_rows.data() + std::size_t(i) * width;
-        for(Eigen::Index j = 0; j < nrhs; ++j) Y(p, j) = scale[p] * row[j];
-      }
-      return;
+    // The kernels take the values of a row side by side, CHOLMOD a column-major block.
+    const bool by_rows = supernodal_kernels_fit(std::size_t(nrhs));
+    const Eigen::Index row_step = by_rows ? nrhs : 1, column_step = by_rows ? 1 : n;
+    m_rhs.resize(std::size_t(n) * std::size_t(nrhs));
+    for(Eigen::Index i = 0; i < n; ++i)
+      for(Eigen::Index j = 0; j < nrhs; ++j)
+        m_rhs[std::size_t(i * row_step + j * column_step)] = scale[perm[i]] * X(perm[i], j);
+    if(by_rows) {
+      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(nrhs));
+    } else {
+      m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), nrhs);
+      cholmod_dense rhs = dense_view(m_rhs.data(), n, nrhs), work = dense_view(m_work.data(), m_work.rows(), nrhs);
+      cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
+      cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common);
+      cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
     }
-    // Wider blocks: CHOLMOD's supernodal solves, in place on a kept buffer.
-    m_rhs.resize(n, nrhs);
-    for(Eigen::Index j = 0; j < nrhs; ++j)
-      for(Eigen::Index i = 0; i < n; ++i) m_rhs(i, j) = scale[perm[i]] * X(perm[i], j);
-    m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), nrhs);
-    cholmod_dense rhs = dense_view(m_rhs), work = dense_view(m_work);
-    cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
-    cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common);
-    cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
-    for(Eigen::Index j = 0; j < nrhs; ++j)
-      for(Eigen::Index i = 0; i < n; ++i) Y(perm[i], j) = scale[perm[i]] * m_rhs(i, j);
+    Y.resize(n, nrhs);
+    for(Eigen::Index i = 0; i < n; ++i)
+      for(Eigen::Index j = 0; j < nrhs; ++j)
+        Y(perm[i], j) = scale[perm[i]] * m_rhs[std::size_t(i * row_step + j * column_step)];
   }
 
   /// The numeric values of the factor, for a caller that reuses their memory once the factor is
@@ -214,20 +206,21 @@ public:
   }
 
 private:
-  static cholmod_dense dense_view(Eigen::MatrixXd& M)
+  /// A column-major rows x cols block at `data`, as CHOLMOD's dense type (no copy).
+  static cholmod_dense dense_view(double* data, Eigen::Index rows, Eigen::Index cols)
   {
     cholmod_dense d{};
-    d.nrow = std::size_t(M.rows());
-    d.ncol = std::size_t(M.cols());
-    d.nzmax = std::size_t(M.size());
-    d.d = std::size_t(M.rows());
-    d.x = M.data();
+    d.nrow = std::size_t(rows);
+    d.ncol = std::size_t(cols);
+    d.nzmax = std::size_t(rows * cols);
+    d.d = std::size_t(rows);
+    d.x = data;
     d.xtype = CHOLMOD_REAL;
     d.dtype = CHOLMOD_DOUBLE;
     return d;
   }
-  mutable std::vector<double> m_rows;        // scaled_solve()'s narrow blocks, row by row
-  mutable Eigen::MatrixXd m_rhs, m_work;     // its wide blocks, for CHOLMOD
+  mutable std::vector<double> m_rhs;  // scaled_solve()'s right-hand sides, permuted and scaled
+  mutable Eigen::MatrixXd m_work;     // CHOLMOD's work space
 };
 
 } // namespace internal

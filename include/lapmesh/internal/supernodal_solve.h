@@ -13,6 +13,7 @@
 #ifndef LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 #define LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 
+#include <cassert>
 #include <cstddef>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -41,13 +42,12 @@ struct Supernodal_factor_view
 
 namespace supernodal_kernels {
 
-// X holds the right-hand sides row by row with `stride` values per row (Stride when it is known at
-// compile time, which lets the compiler keep a row in vector registers); the kernels work on the
-// first W values of each row.
-template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X, std::size_t runtime_stride)
+// X holds W right-hand sides row by row. W is a compile-time constant: the compiler keeps a row
+// in vector registers.
+template <int W>
+LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
 {
-  const std::size_t stride = Stride > 0 ? std::size_t(Stride) : runtime_stride;
+  constexpr std::size_t stride = W;
   for(std::size_t s = 0; s < L.nsuper; ++s) {
     const int k1 = L.super[s], ncol = L.super[s + 1] - k1, nrow = L.pi[s + 1] - L.pi[s];
     const int* rows = L.rows + L.pi[s];
@@ -88,10 +88,10 @@ LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X, s
   }
 }
 
-template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X, std::size_t runtime_stride)
+template <int W>
+LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
 {
-  const std::size_t stride = Stride > 0 ? std::size_t(Stride) : runtime_stride;
+  constexpr std::size_t stride = W;
   for(std::size_t s = L.nsuper; s-- > 0;) {
     const int k1 = L.super[s], ncol = L.super[s + 1] - k1, nrow = L.pi[s + 1] - L.pi[s];
     const int* rows = L.rows + L.pi[s];
@@ -155,26 +155,25 @@ LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X, 
   }
 }
 
-template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void solve_group(const Supernodal_factor_view& L, double* X, std::size_t stride)
+template <int W>
+LAPMESH_ALWAYS_INLINE void solve_width(const Supernodal_factor_view& L, double* X)
 {
-  forward<W, Stride>(L, X, stride);
-  backward<W, Stride>(L, X, stride);
+  forward<W>(L, X);
+  backward<W>(L, X);
 }
 
-// One pass over the factor for up to 8 right-hand sides.
+// One pass over the factor for the block (its width checked by supernodal_kernels_fit()).
 LAPMESH_ALWAYS_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
   switch(width) {
-    case 1: solve_group<1, 1>(L, X, width); return;
-    case 2: solve_group<2, 2>(L, X, width); return;
-    case 3: solve_group<3, 3>(L, X, width); return;
-    case 4: solve_group<4, 4>(L, X, width); return;
-    case 5: solve_group<5, 5>(L, X, width); return;
-    case 6: solve_group<6, 6>(L, X, width); return;
-    case 7: solve_group<7, 7>(L, X, width); return;
-    case 8: solve_group<8, 8>(L, X, width); return;
-    default: return;
+    case 2: solve_width<2>(L, X); return;
+    case 3: solve_width<3>(L, X); return;
+    case 4: solve_width<4>(L, X); return;
+    case 5: solve_width<5>(L, X); return;
+    case 6: solve_width<6>(L, X); return;
+    case 7: solve_width<7>(L, X); return;
+    case 8: solve_width<8>(L, X); return;
+    default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
   }
 }
 
@@ -190,12 +189,14 @@ __attribute__((target("avx2,fma"))) inline void solve_avx2(const Supernodal_fact
 
 } // namespace supernodal_kernels
 
-/// The widest block supernodal_llt_solve_rows() takes: beyond it, the BLAS products of a
-/// supernodal solve are large enough to pay for their overhead.
-constexpr std::size_t supernodal_solve_max_width = 8;
+/// Whether supernodal_llt_solve_rows() takes a block of `width` right-hand sides. A single vector
+/// is memory bound either way (CHOLMOD's solve was as fast, or faster on a factor read from
+/// memory); beyond 8, the BLAS products of CHOLMOD's supernodal solves are large enough to pay
+/// for their overhead.
+inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && width <= 8; }
 
-/// Solves L L^T X = B in place: X holds B's `width` (1 to supernodal_solve_max_width) columns
-/// row by row (row i of B at X + i * width), in the factor's (permuted) numbering.
+/// Solves L L^T X = B in place: X holds B's `width` columns (supernodal_kernels_fit(width)) row
+/// by row (row i of B at X + i * width), in the factor's (permuted) numbering.
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
