@@ -11,6 +11,10 @@
 
 #include <Eigen/Dense>
 
+#ifdef CGAL_LINKED_WITH_TBB
+#include <tbb/task_arena.h>
+#endif
+
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
 
@@ -376,6 +380,113 @@ TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
     EXPECT_NE(fast.find(expected), std::string::npos) << fast;
     EXPECT_EQ(fast, message(*m, true));
   }
+}
+
+namespace {
+
+void expect_same_topology(const lapmesh::internal::Mesh_topology& a, const lapmesh::internal::Mesh_topology& b)
+{
+  EXPECT_EQ(a.num_vertices, b.num_vertices);
+  EXPECT_EQ(a.num_faces, b.num_faces);
+  EXPECT_EQ(a.num_edges, b.num_edges);
+  EXPECT_EQ(a.num_boundary_edges, b.num_boundary_edges);
+  EXPECT_EQ(a.triangles, b.triangles);
+  EXPECT_EQ(a.corner_begin, b.corner_begin);
+  EXPECT_EQ(a.vertex_corners, b.vertex_corners);
+  EXPECT_EQ(a.outer, b.outer);
+  EXPECT_EQ(a.inner, b.inner);
+  EXPECT_EQ(a.diagonal_slot, b.diagonal_slot);
+  EXPECT_EQ(a.slot_corners, b.slot_corners);
+  EXPECT_EQ(a.on_boundary, b.on_boundary);
+  EXPECT_EQ(a.manifold, b.manifold);
+  EXPECT_EQ(a.fan_slot, b.fan_slot);
+  EXPECT_EQ(a.fan_begin, b.fan_begin);
+  EXPECT_EQ(a.fan_corners, b.fan_corners);
+}
+
+} // namespace
+
+// The parallel topology is built in parts (rows) and vertex ranges (one per thread) that are
+// joined afterwards: it must equal the serial one field by field, on meshes large enough for
+// several of each, closed, with a boundary, and with non-manifold edges. With TBB it runs in
+// an arena of 8 threads whatever the machine; without TBB the parts are still joined.
+TEST(Operators, ParallelTopologyEqualsTheSerialOne)
+{
+  using lapmesh::internal::build_corner_topology;
+  using lapmesh::internal::build_topology;
+  auto flat = [](const lapmesh::Triangle_soup& soup) {
+    std::vector<int> tri;
+    for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
+    return std::make_pair(int(soup.points.size()), tri);
+  };
+  auto torus = flat(lapmesh::torus(400, 200));
+  auto fins = torus;  // a third face on two edges far apart: two fans, in different parts
+  for(int f : {0, int(torus.second.size() / 3) - 1}) {
+    fins.second.insert(fins.second.end(), {torus.second[3 * f], torus.second[3 * f + 1], fins.first});
+    ++fins.first;
+  }
+  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins};
+  auto check = [&] {
+    for(const auto& [n, tri] : cases) {
+      ASSERT_GT(n, 4 * 16384);
+      const auto serial = build_topology(n, tri, false);
+      expect_same_topology(serial, build_topology(n, tri, true));
+      expect_same_topology(build_corner_topology(n, tri, false), build_corner_topology(n, tri, true));
+    }
+  };
+#ifdef CGAL_LINKED_WITH_TBB
+  tbb::task_arena(8).execute(check);
+#else
+  check();
+#endif
+  EXPECT_GT(build_topology(cases[1].first, cases[1].second, true).num_boundary_edges, 0);
+  const auto nonmanifold = build_topology(fins.first, fins.second, true);
+  EXPECT_FALSE(nonmanifold.manifold);
+  EXPECT_EQ(nonmanifold.fan_slot.size(), 2u);
+  EXPECT_FALSE(build_corner_topology(fins.first, fins.second, true).manifold);
+}
+
+// A Surface_mesh without removed elements is read by index (in parallel where asked): the
+// same arrays and the same errors as the general reader of any FaceGraph.
+TEST(Operators, SurfaceMeshIsReadAsAnyFaceGraph)
+{
+  using namespace lapmesh::internal;
+  auto general = [](const Mesh& m) {
+    return with_default_vertex_rows(m, [&](auto rows) { return read_with_index_map(m, rows, get(CGAL::vertex_point, m)); });
+  };
+  const Mesh m = to_mesh(lapmesh::torus(400, 200));
+  const auto reference = general(m);
+  for(bool parallel : {false, true}) {
+    const auto read = extract_arrays(m, CGAL::parameters::default_values(), parallel);
+    EXPECT_EQ(read.positions, reference.positions);
+    EXPECT_EQ(read.triangles, reference.triangles);
+    EXPECT_EQ(read.vertices, reference.vertices);
+    EXPECT_EQ(read.vertex_rows, reference.vertex_rows);
+  }
+  auto message = [](const auto& read) -> std::string {
+    try {
+      read();
+    } catch(const lapmesh::Mesh_error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  Mesh bad = to_mesh(lapmesh::torus(400, 200));
+  bad.point(Mesh::Vertex_index(40000)) = Point(0, std::nan(""), 0);
+  bad.point(Mesh::Vertex_index(70000)) = Point(0, 0, HUGE_VAL);
+  for(bool parallel : {false, true})
+    EXPECT_EQ(message([&] { extract_arrays(bad, CGAL::parameters::default_values(), parallel); }),
+              "vertex 40000 has a non-finite coordinate");
+  EXPECT_EQ(message([&] { general(bad); }), "vertex 40000 has a non-finite coordinate");
+  // Two triangles joined into a quad: face 60000 (or the face that takes its place) is not a triangle.
+  Mesh quad = to_mesh(lapmesh::torus(400, 200));
+  CGAL::Euler::join_face(halfedge(Mesh::Face_index(60000), quad), quad);
+  ASSERT_TRUE(quad.has_garbage());
+  quad.collect_garbage();
+  std::string expected = message([&] { general(quad); });
+  EXPECT_NE(expected.find("is not a triangle"), std::string::npos) << expected;
+  for(bool parallel : {false, true})
+    EXPECT_EQ(message([&] { extract_arrays(quad, CGAL::parameters::default_values(), parallel); }), expected);
 }
 
 TEST(Operators, CornerTopologyEqualsTheFullOne)

@@ -56,7 +56,8 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
     if(internal::choose_laplacian(np) == Laplacian::uniform && internal::uniform_pencil_from_edges(tm, np, out))
       return out;
-  const auto mesh = internal::extract_mesh(tm, np);
+  const auto mesh =
+    internal::extract_mesh(tm, np, internal::Topology_detail::pattern, internal::is_parallel<ConcurrencyTag>());
   internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
                             internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
                             internal::choose_mollification(np));
@@ -92,7 +93,8 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
           typename NamedParameters = CGAL::parameters::Default_named_parameters>
 Eigen::VectorXd vertex_areas(const TriangleMesh& tm, const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np, internal::Topology_detail::corners);
+  const auto mesh =
+    internal::extract_mesh(tm, np, internal::Topology_detail::corners, internal::is_parallel<ConcurrencyTag>());
   return mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
                                              internal::is_parallel<ConcurrencyTag>()),
                       0.0);
@@ -104,7 +106,8 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_vertex_areas(const TriangleMesh& tm, VertexAreaMap area_map,
                           const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto mesh = internal::extract_mesh(tm, np, internal::Topology_detail::corners);
+  const auto mesh =
+    internal::extract_mesh(tm, np, internal::Topology_detail::corners, internal::is_parallel<ConcurrencyTag>());
   internal::write_row_values(mesh.vertex_rows,
                              mesh.to_rows(internal::vertex_areas(mesh.topology, mesh.positions,
                                                                  internal::choose_vertex_area(np),

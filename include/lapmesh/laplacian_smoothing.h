@@ -97,7 +97,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   using CGAL::parameters::get_parameter;
   using CGAL::parameters::is_default_parameter;
 
-  auto mesh = extract_mesh(tm, np);
+  auto mesh = extract_mesh(tm, np, Topology_detail::pattern, is_parallel<ConcurrencyTag>());
   Smoothing_settings s;
   s.scheme = scheme;
   s.laplacian = choose_laplacian(np);

@@ -231,16 +231,22 @@ inline void fill_uniform_stiffness(const Mesh_topology& t, double* values, bool 
   });
 }
 
-/// A sparse matrix with the pattern of `t` and zero values.
+/// A sparse matrix with the pattern of `t`, its values not set: fill_cotangent_stiffness() and
+/// fill_uniform_stiffness() each write every slot. Copied row by row, in parallel where asked,
+/// so that the pages of a large matrix are first touched by several threads.
 template <typename SparseMatrix>
-void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S)
+void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
 {
   const Index n = t.num_vertices, nnz = t.num_nonzeros();
   S.resize(n, n);
   S.resizeNonZeros(nnz);
-  std::copy(t.outer.begin(), t.outer.end(), S.outerIndexPtr());
-  std::copy(t.inner.begin(), t.inner.end(), S.innerIndexPtr());
-  std::fill(S.valuePtr(), S.valuePtr() + nnz, 0.0);
+  Index* outer = S.outerIndexPtr();
+  Index* inner = S.innerIndexPtr();
+  outer[0] = 0;
+  for_each_index(n, parallel, [&](Index i) {
+    outer[i + 1] = t.outer[i + 1];
+    std::copy(t.inner.begin() + t.outer[i], t.inner.begin() + t.outer[i + 1], inner + t.outer[i]);
+  });
 }
 
 /// Mean length of the edges (each edge counted once).

@@ -40,7 +40,7 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
     if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
        !out.stiffness.isCompressed() ||
        !std::equal(t.inner.begin(), t.inner.end(), out.stiffness.innerIndexPtr()))
-      make_pattern_matrix(t, out.stiffness);
+      make_pattern_matrix(t, out.stiffness, parallel);
     Corner_geometry g;
     intrinsic_corner_geometry(it, area, parallel, g, t.num_faces);
     fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
@@ -50,7 +50,7 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
   require_manifold(t, to_string(laplacian));
   if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
      !out.stiffness.isCompressed())
-    make_pattern_matrix(t, out.stiffness);
+    make_pattern_matrix(t, out.stiffness, parallel);
   if(laplacian == Laplacian::uniform) {
     fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
     out.mass.resize(t.num_vertices);

@@ -16,6 +16,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 
 #include <CGAL/Dynamic_property_map.h>
@@ -34,8 +35,20 @@
 #include <type_traits>
 #include <vector>
 
+namespace CGAL {
+template <typename Point>
+class Surface_mesh;
+}
+
 namespace lapmesh {
 namespace internal {
+
+template <typename TriangleMesh>
+struct is_surface_mesh : std::false_type
+{};
+template <typename Point>
+struct is_surface_mesh<CGAL::Surface_mesh<Point>> : std::true_type
+{};
 
 /// Positions and triangles as read, before any topology is built (what writing a mesh needs).
 template <typename TriangleMesh>
@@ -164,6 +177,56 @@ Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, Verte
   return out;
 }
 
+/// read_with_index_map() for a Surface_mesh without removed elements in its default numbering,
+/// where the position in vertices(tm) is the vertex's own index: read by index, with no
+/// renumbering and no welding to check, in parallel (TBB) when asked. Same result and errors.
+template <typename SurfaceMesh, typename VertexPointMap>
+Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPointMap vpm, bool parallel)
+{
+  using Vertex = typename SurfaceMesh::Vertex_index;
+  using Face = typename SurfaceMesh::Face_index;
+  const Index n = static_cast<Index>(tm.number_of_vertices()), m = static_cast<Index>(tm.number_of_faces());
+  Extracted_arrays<SurfaceMesh> out;
+  out.positions.resize(n, 3);
+  out.vertices.resize(std::size_t(n));
+  out.vertex_rows.resize(std::size_t(n));
+  char all_finite = 1;
+  for_each_index(n, parallel, [&](Index i) {
+    const Vertex v(static_cast<typename Vertex::size_type>(i));
+    const auto& p = get(vpm, v);
+    const double x = CGAL::to_double(p.x()), y = CGAL::to_double(p.y()), z = CGAL::to_double(p.z());
+    out.positions.row(i) << x, y, z;
+    if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) __atomic_store_n(&all_finite, char(0), __ATOMIC_RELAXED);
+    out.vertices[std::size_t(i)] = v;
+    out.vertex_rows[std::size_t(i)] = {v, i};
+  });
+  if(!all_finite)
+    for(Index i = 0; i < n; ++i)
+      if(!out.positions.row(i).allFinite())
+        throw Mesh_error("vertex " + std::to_string(i) + " has a non-finite coordinate", Mesh_error::Element::vertex, i);
+  out.triangles.resize(3 * std::size_t(m));
+  char all_triangles = 1;
+  for_each_index(m, parallel, [&](Index f) {
+    const auto h0 = tm.halfedge(Face(static_cast<typename Face::size_type>(f)));
+    const auto h1 = tm.next(h0), h2 = tm.next(h1);
+    if(tm.next(h2) != h0) {
+      __atomic_store_n(&all_triangles, char(0), __ATOMIC_RELAXED);
+      return;
+    }
+    Index* corner = &out.triangles[3 * std::size_t(f)];
+    corner[0] = static_cast<Index>(tm.target(h0));
+    corner[1] = static_cast<Index>(tm.target(h1));
+    corner[2] = static_cast<Index>(tm.target(h2));
+  });
+  if(!all_triangles)
+    for(Index f = 0; f < m; ++f) {
+      const auto h = tm.halfedge(Face(static_cast<typename Face::size_type>(f)));
+      if(tm.next(tm.next(tm.next(h))) != h)
+        throw Mesh_error("face " + std::to_string(f) + " is not a triangle", Mesh_error::Element::face, f);
+    }
+  return out;
+}
+
 /// Readable property map: an internal index with holes, mapped to 0..n-1.
 template <typename InternalIndexMap>
 struct Compacted_index_map
@@ -204,8 +267,9 @@ decltype(auto) with_default_vertex_rows(const TriangleMesh& tm, F&& f)
 
 /// Reads the positions and triangles of `tm` (named parameters: vertex_point_map,
 /// vertex_index_map). Throws Mesh_error on non-triangle faces and non-finite coordinates.
+/// `parallel`: read a Surface_mesh in parallel (TBB) where it can be (read_surface_mesh()).
 template <typename TriangleMesh, typename NamedParameters>
-Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const NamedParameters& np)
+Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const NamedParameters& np, bool parallel = false)
 {
   using CGAL::parameters::choose_parameter;
   using CGAL::parameters::get_parameter;
@@ -213,10 +277,14 @@ Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const Name
 
   auto vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point),
                               get_const_property_map(CGAL::vertex_point, tm));
-  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
+  if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value) {
     return read_with_index_map(tm, get_parameter(np, CGAL::internal_np::vertex_index), vpm);
-  else
+  } else {
+    if constexpr(is_surface_mesh<TriangleMesh>::value)
+      if(!tm.has_garbage()) return read_surface_mesh(tm, vpm, parallel);
+    (void)parallel;
     return with_default_vertex_rows(tm, [&](auto rows) { return read_with_index_map(tm, rows, vpm); });
+  }
 }
 
 /// How much of the topology an extraction builds: the sparsity pattern and its edge slots
@@ -227,23 +295,26 @@ enum class Topology_detail { pattern, corners };
 /// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
 /// vertex_index_map), over the rows that are in a face. Throws Mesh_error on non-triangle
 /// faces, non-finite coordinates, a face with a repeated vertex, and a mesh with no face.
+/// `parallel` (CGAL::Parallel_tag): the reading and the topology in parallel, same result.
 template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
-                                          Topology_detail detail = Topology_detail::pattern)
+                                          Topology_detail detail = Topology_detail::pattern, bool parallel = false)
 {
-  const auto topology = [detail](Index n, std::vector<Index>&& triangles) {
-    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles))
-                                              : build_corner_topology(n, std::move(triangles));
+  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles) {
+    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel)
+                                              : build_corner_topology(n, std::move(triangles), parallel);
   };
-  Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np);
+  Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np, parallel);
   Extracted_mesh<TriangleMesh> out;
   const Index n = Index(arrays.vertices.size());
   out.num_rows = n;
   out.vertex_rows = std::move(arrays.vertex_rows);
   if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
   std::vector<Index> topology_vertex(n, -1);
-  for(Index v : arrays.triangles)
-    if(v >= 0 && v < n) topology_vertex[v] = 0;
+  for_each_index(Index(arrays.triangles.size()), parallel, [&](Index c) {
+    const Index v = arrays.triangles[std::size_t(c)];
+    if(v >= 0 && v < n) __atomic_store_n(&topology_vertex[std::size_t(v)], Index(0), __ATOMIC_RELAXED);
+  });
   Index used = 0;
   for(Index r = 0; r < n; ++r)
     if(topology_vertex[r] == 0) topology_vertex[r] = used++;

@@ -9,6 +9,7 @@
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #endif
 
 namespace lapmesh {
@@ -27,12 +28,13 @@ constexpr bool is_parallel()
 
 /// Calls body(i) for i in [0, n); in parallel blocks when `parallel` and TBB is available.
 /// The bodies lapmesh passes write disjoint outputs, so no synchronisation is needed.
+/// `grain` is the fewest indices a task takes; below twice that the loop stays serial.
 template <typename IndexType, typename Body>
-void for_each_index(IndexType n, bool parallel, const Body& body)
+void for_each_index(IndexType n, bool parallel, const Body& body, IndexType grain = 2048)
 {
 #ifdef CGAL_LINKED_WITH_TBB
-  if(parallel && n > 4096) {
-    tbb::parallel_for(tbb::blocked_range<IndexType>(0, n, 2048),
+  if(parallel && n >= 2 * grain) {
+    tbb::parallel_for(tbb::blocked_range<IndexType>(0, n, grain),
                       [&](const tbb::blocked_range<IndexType>& r) {
                         for(IndexType i = r.begin(); i != r.end(); ++i) body(i);
                       });
@@ -41,6 +43,30 @@ void for_each_index(IndexType n, bool parallel, const Body& body)
 #endif
   (void)parallel;
   for(IndexType i = 0; i < n; ++i) body(i);
+}
+
+/// Splits [0, n) into consecutive parts of `part_size` (the last one shorter) and calls
+/// body(part, begin, end) for each; in parallel when `parallel` and TBB is available. The
+/// split depends on n and part_size only, so a body that keeps per-part results and merges
+/// them in part order computes the same thing serially and in parallel.
+template <typename IndexType, typename Body>
+void for_each_part(IndexType n, IndexType part_size, bool parallel, const Body& body)
+{
+  const IndexType parts = n == 0 ? 0 : (n - 1) / part_size + 1;
+  for_each_index(parts, parallel && parts > 1, [&](IndexType p) {
+    const IndexType begin = p * part_size;
+    body(p, begin, n - begin < part_size ? n : begin + part_size);
+  }, IndexType(1));
+}
+
+/// How many threads a parallel loop may use: 1 when not `parallel` or without TBB.
+inline int thread_count(bool parallel)
+{
+#ifdef CGAL_LINKED_WITH_TBB
+  if(parallel) return tbb::this_task_arena::max_concurrency();
+#endif
+  (void)parallel;
+  return 1;
 }
 
 } // namespace internal

@@ -13,6 +13,7 @@
 #define LAPMESH_INTERNAL_TOPOLOGY_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/parallel.h>
 
 #include <algorithm>
 #include <array>
@@ -140,69 +141,112 @@ struct Mesh_topology
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
 };
 
-/// The part of every topology that a pass over the corners needs: the triangles, checked, and
-/// each vertex's incident corners, by a counting sort (ascending corner index per vertex).
-/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex in
-/// no face.
-inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles)
+/// Throws Mesh_error for the first face of `tri` with a vertex index out of [0, n) or a
+/// repeated vertex.
+inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool parallel)
 {
-  Mesh_topology t;
-  t.num_vertices = num_vertices;
-  t.num_faces = static_cast<Index>(triangles.size() / 3);
-  t.triangles = std::move(triangles);
-  const Index n = num_vertices, m = t.num_faces;
-  const std::vector<Index>& tri = t.triangles;
-
+  const Index m = static_cast<Index>(tri.size() / 3);
+  const auto valid = [&](Index f) {
+    const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+    return a >= 0 && b >= 0 && c >= 0 && a < n && b < n && c < n && a != b && b != c && a != c;
+  };
+  if(parallel) {  // find out whether one is invalid; the serial loop below names the first
+    char all_valid = 1;
+    for_each_index(m, true, [&](Index f) {
+      if(!valid(f)) __atomic_store_n(&all_valid, char(0), __ATOMIC_RELAXED);
+    });
+    if(all_valid) return;
+  }
   for(Index f = 0; f < m; ++f) {
+    if(valid(f)) continue;
     const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
     if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
       throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " +
                          std::to_string(n) + ")",
                        Mesh_error::Element::face, f);
-    if(a == b || b == c || a == c)
-      throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice",
-                       Mesh_error::Element::face, f);
+    throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
   }
+}
+
+/// How many ranges for_each_vertex_range() splits n vertices into: one serially, one per
+/// thread (of at least 16384 vertices) in parallel.
+inline Index vertex_range_count(Index n, bool parallel)
+{
+  return std::max(1, std::min(thread_count(parallel), n / 16384));
+}
+
+/// Calls body(range, first, last) for the consecutive ranges of the vertices 0..n-1.
+template <typename Body>
+void for_each_vertex_range(Index n, bool parallel, const Body& body)
+{
+  const Index ranges = vertex_range_count(n, parallel);
+  for_each_part(ranges, Index(1), ranges > 1, [&](Index r, Index, Index) {
+    body(r, Index(std::int64_t(n) * r / ranges), Index(std::int64_t(n) * (r + 1) / ranges));
+  });
+}
+
+/// The part of every topology that a pass over the corners needs: the triangles, checked, and
+/// each vertex's incident corners, by a counting sort (ascending corner index per vertex).
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex in
+/// no face. In parallel each thread takes a range of vertices and streams over all corners for
+/// theirs: the writes stay in its range, with no atomic counter shared between threads, and
+/// the order is the serial one.
+inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
+{
+  Mesh_topology t;
+  t.num_vertices = num_vertices;
+  t.num_faces = static_cast<Index>(triangles.size() / 3);
+  t.triangles = std::move(triangles);
+  const Index n = num_vertices, corners = 3 * t.num_faces;
+  const std::vector<Index>& tri = t.triangles;
+  require_valid_faces(n, tri, parallel);
 
   t.corner_begin.assign(n + 1, 0);
-  for(Index c = 0; c < 3 * m; ++c) ++t.corner_begin[tri[c] + 1];
+  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
+    for(Index c = 0; c < corners; ++c)
+      if(tri[c] >= first && tri[c] < last) ++t.corner_begin[tri[c] + 1];
+  });
   for(Index v = 0; v < n; ++v) {
     if(t.corner_begin[v + 1] == 0)
       throw Mesh_error("vertex " + std::to_string(v) + " is in no face",
                        Mesh_error::Element::vertex, v);
     t.corner_begin[v + 1] += t.corner_begin[v];
   }
-  t.vertex_corners.resize(3 * std::size_t(m));
-  {
-    std::vector<Index> fill(t.corner_begin.begin(), t.corner_begin.end() - 1);
-    for(Index c = 0; c < 3 * m; ++c) t.vertex_corners[fill[tri[c]]++] = c;
-  }
+  t.vertex_corners.resize(std::size_t(corners));
+  std::vector<Index> fill(t.corner_begin.begin(), t.corner_begin.end() - 1);
+  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
+    for(Index c = 0; c < corners; ++c)
+      if(tri[c] >= first && tri[c] < last) t.vertex_corners[fill[tri[c]]++] = c;
+  });
   return t;
 }
 
-/// Builds the topology from a triangle list over vertices 0..n-1.
-/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
-/// in no face. An edge with two faces on the same side (three or more faces around an edge,
-/// or two neighbouring faces with opposite orientations) makes the topology non-manifold
-/// (`manifold` false, the edge in `edge_fans`).
-inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles)
+/// Rows of the one-ring pattern built by one part of build_topology(), with slot numbers that
+/// start at zero: the part's own arrays, moved or copied into the topology afterwards.
+struct Pattern_rows
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles));
-  const Index n = num_vertices;
-  const std::vector<Index>& tri = t.triangles;
+  std::vector<Index> inner;
+  std::vector<std::array<Index, 2>> slot_corners;
+  std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
+  Index num_edges = 0;
+  Index num_boundary_edges = 0;
+  bool manifold = true;
+};
 
-  // Rows of the one-ring pattern. Each incident corner of i contributes two halfedges:
-  // i->q (its face's halfedge leaving i, opposite the corner at r) and r->i (opposite q).
-  // They are packed as (neighbour << 33 | side << 32 | corner) so that a plain integer
-  // insertion sort (rows hold ~12 entries) orders them by neighbour, then side.
+/// Builds rows [first, last) of t's pattern into `rows`; writes t.outer[i + 1] and
+/// t.diagonal_slot[i] relative to the part's first slot, and t.on_boundary[i].
+inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
+{
+  const std::vector<Index>& tri = t.triangles;
+  // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
+  // i, opposite the corner at r) and r->i (opposite q). They are packed as
+  // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
+  // hold ~12 entries) orders them by neighbour, then side.
   std::vector<std::uint64_t> ring;
-  t.outer.resize(n + 1);
-  t.diagonal_slot.resize(n);
-  t.on_boundary.assign(n, 0);
-  t.inner.reserve(7 * std::size_t(n));
-  t.slot_corners.reserve(7 * std::size_t(n));
-  t.outer[0] = 0;
-  for(Index i = 0; i < n; ++i) {
+  const std::size_t expected = 7 * std::size_t(last - first);
+  rows.inner.reserve(expected);
+  rows.slot_corners.reserve(expected);
+  for(Index i = first; i < last; ++i) {
     ring.clear();
     for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
       const Index c = t.vertex_corners[k];
@@ -218,16 +262,16 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     }
     bool diagonal_done = false;
     auto emit_diagonal = [&] {
-      t.diagonal_slot[i] = static_cast<Index>(t.inner.size());
-      t.inner.push_back(i);
-      t.slot_corners.push_back({-1, -1});
+      t.diagonal_slot[i] = static_cast<Index>(rows.inner.size());
+      rows.inner.push_back(i);
+      rows.slot_corners.push_back({-1, -1});
       diagonal_done = true;
     };
     for(std::size_t k = 0; k < ring.size();) {
       const Index j = static_cast<Index>(ring[k] >> 33);
       if(!diagonal_done && j > i) emit_diagonal();
       std::array<Index, 2> corners = {-1, -1};
-      const std::size_t first = k;
+      const std::size_t first_key = k;
       bool fan = false;
       for(; k < ring.size() && static_cast<Index>(ring[k] >> 33) == j; ++k) {
         const Index corner = static_cast<Index>(ring[k] & 0xffffffffu);
@@ -238,70 +282,144 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
           slot = corner;
       }
       if(fan) {
-        t.manifold = false;
+        rows.manifold = false;
         if(j > i) {
-          t.fan_slot.push_back(static_cast<Index>(t.inner.size()));
-          for(std::size_t r = first; r < k; ++r) t.fan_corners.push_back(static_cast<Index>(ring[r] & 0xffffffffu));
-          t.fan_begin.push_back(static_cast<Index>(t.fan_corners.size()));
+          rows.fan_slot.push_back(static_cast<Index>(rows.inner.size()));
+          for(std::size_t r = first_key; r < k; ++r)
+            rows.fan_corners.push_back(static_cast<Index>(ring[r] & 0xffffffffu));
+          rows.fan_begin.push_back(static_cast<Index>(rows.fan_corners.size()));
         }
       }
       if(corners[0] == -1 || corners[1] == -1) {
         t.on_boundary[i] = 1;
-        if(j > i) ++t.num_boundary_edges;
+        if(j > i) ++rows.num_boundary_edges;
       }
-      if(j > i) ++t.num_edges;
-      t.inner.push_back(j);
-      t.slot_corners.push_back(corners);
+      if(j > i) ++rows.num_edges;
+      rows.inner.push_back(j);
+      rows.slot_corners.push_back(corners);
     }
     if(!diagonal_done) emit_diagonal();
-    t.outer[i + 1] = static_cast<Index>(t.inner.size());
+    t.outer[i + 1] = static_cast<Index>(rows.inner.size());
   }
+}
+
+/// Builds the topology from a triangle list over vertices 0..n-1.
+/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
+/// in no face. An edge with two faces on the same side (three or more faces around an edge,
+/// or two neighbouring faces with opposite orientations) makes the topology non-manifold
+/// (`manifold` false, the edge in `edge_fans`). In parallel (TBB) the rows are built in parts
+/// and joined in order: the result equals the serial one.
+inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
+{
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel);
+  const Index n = num_vertices;
+  t.outer.resize(n + 1);
+  t.outer[0] = 0;
+  t.diagonal_slot.resize(n);
+  t.on_boundary.assign(n, 0);
+  constexpr Index rows_per_part = 16384;
+  std::vector<Pattern_rows> parts(std::size_t(parallel ? (n + rows_per_part - 1) / rows_per_part : 1));
+  if(parts.size() == 1) {
+    build_pattern_rows(t, 0, n, parts[0]);
+  } else {
+    for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
+      build_pattern_rows(t, first, last, parts[std::size_t(p)]);
+    });
+  }
+  // Join the parts: slot numbers and fans move by what the parts before them hold.
+  std::vector<Index> slot_base(parts.size() + 1, 0);
+  for(std::size_t p = 0; p < parts.size(); ++p) {
+    const Pattern_rows& part = parts[p];
+    slot_base[p + 1] = slot_base[p] + static_cast<Index>(part.inner.size());
+    t.num_edges += part.num_edges;
+    t.num_boundary_edges += part.num_boundary_edges;
+    t.manifold = t.manifold && part.manifold;
+    for(Index s : part.fan_slot) t.fan_slot.push_back(s + slot_base[p]);
+    const Index fan_base = static_cast<Index>(t.fan_corners.size());
+    for(std::size_t e = 1; e < part.fan_begin.size(); ++e) t.fan_begin.push_back(part.fan_begin[e] + fan_base);
+    t.fan_corners.insert(t.fan_corners.end(), part.fan_corners.begin(), part.fan_corners.end());
+  }
+  if(parts.size() == 1) {
+    t.inner = std::move(parts[0].inner);
+    t.slot_corners = std::move(parts[0].slot_corners);
+    return t;
+  }
+  t.inner.resize(std::size_t(slot_base.back()));
+  t.slot_corners.resize(std::size_t(slot_base.back()));
+  for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
+    const Pattern_rows& part = parts[std::size_t(p)];
+    const Index base = slot_base[std::size_t(p)];
+    std::copy(part.inner.begin(), part.inner.end(), t.inner.begin() + base);
+    std::copy(part.slot_corners.begin(), part.slot_corners.end(), t.slot_corners.begin() + base);
+    for(Index i = first; i < last; ++i) {
+      t.outer[i + 1] += base;
+      t.diagonal_slot[i] += base;
+    }
+    std::vector<Index>().swap(parts[std::size_t(p)].inner);
+  });
   return t;
 }
 
 /// The topology that per-corner passes and their gathers need (angles, areas, Gaussian
-/// curvature): build_corner_incidence(), the boundary vertices and the edge counts, without
-/// the sparsity pattern and its slots (has_pattern() false), which cost most of
-/// build_topology(). Every field it fills equals build_topology()'s. A non-manifold mesh gets
-/// the full topology, whose edge fans name the edge in require_manifold()'s message.
-inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles)
+/// curvature, the cotangent sums of the mean curvature): build_corner_incidence(), the boundary
+/// vertices and the edge counts, without the sparsity pattern and its slots (has_pattern()
+/// false), which cost most of build_topology(). Every field it fills equals build_topology()'s.
+/// A non-manifold mesh gets the full topology, whose edge fans name the edge in
+/// require_manifold()'s message.
+inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles));
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel);
   const Index n = num_vertices;
   const std::vector<Index>& tri = t.triangles;
   t.on_boundary.assign(n, 0);
   // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
   // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
-  // side of an edge) is what build_topology calls non-manifold. Each neighbour is stamped with
-  // the vertex that saw it last, so no per-vertex list is sorted or cleared.
-  std::vector<Index> out_seen(n, -1), in_seen(n, -1);
-  Index edges = 0, boundary_edges = 0;
-  for(Index i = 0; i < n; ++i) {
-    const Index begin = t.corner_begin[i], end = t.corner_begin[i + 1];
-    Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
-    for(Index k = begin; k < end; ++k) {
-      const Index j = tri[next_corner(t.vertex_corners[k])];
-      if(out_seen[j] == i) return build_topology(n, std::move(t.triangles));
-      out_seen[j] = i;
-      out_above += j > i;
-    }
-    for(Index k = begin; k < end; ++k) {
-      const Index j = tri[prev_corner(t.vertex_corners[k])];
-      if(in_seen[j] == i) return build_topology(n, std::move(t.triangles));
-      in_seen[j] = i;
-      if(out_seen[j] == i) {
-        ++both;
-        both_above += j > i;
-      } else {
-        in_only_above += j > i;
+  // side of an edge) is what build_topology calls non-manifold. Each range of vertices marks
+  // the neighbours of its vertex in flags of its own (out: 1, in: 2) and clears them after,
+  // so no list is sorted; the counts of the ranges are summed in order.
+  struct Counts
+  {
+    Index edges = 0, boundary_edges = 0;
+    bool manifold = true;
+  };
+  std::vector<Counts> ranges(std::size_t(vertex_range_count(n, parallel)));
+  for_each_vertex_range(n, parallel, [&](Index range, Index first, Index last) {
+    Counts& counts = ranges[std::size_t(range)];
+    std::vector<unsigned char> seen(std::size_t(n), 0);
+    for(Index i = first; i < last && counts.manifold; ++i) {
+      const Index begin = t.corner_begin[i], end = t.corner_begin[i + 1];
+      Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
+      for(Index k = begin; k < end; ++k) {
+        const Index j = tri[next_corner(t.vertex_corners[k])];
+        counts.manifold = counts.manifold && !(seen[j] & 1);
+        seen[j] |= 1;
+        out_above += j > i;
       }
+      for(Index k = begin; k < end; ++k) {
+        const Index j = tri[prev_corner(t.vertex_corners[k])];
+        counts.manifold = counts.manifold && !(seen[j] & 2);
+        seen[j] |= 2;
+        if(seen[j] & 1) {
+          ++both;
+          both_above += j > i;
+        } else {
+          in_only_above += j > i;
+        }
+      }
+      for(Index k = begin; k < end; ++k) {
+        seen[tri[next_corner(t.vertex_corners[k])]] = 0;
+        seen[tri[prev_corner(t.vertex_corners[k])]] = 0;
+      }
+      if(both != end - begin) t.on_boundary[i] = 1;
+      counts.edges += out_above + in_only_above;
+      counts.boundary_edges += out_above - both_above + in_only_above;
     }
-    if(both != end - begin) t.on_boundary[i] = 1;
-    edges += out_above + in_only_above;
-    boundary_edges += out_above - both_above + in_only_above;
+  });
+  for(const Counts& counts : ranges) {
+    if(!counts.manifold) return build_topology(n, std::move(t.triangles), parallel);
+    t.num_edges += counts.edges;
+    t.num_boundary_edges += counts.boundary_edges;
   }
-  t.num_edges = edges;
-  t.num_boundary_edges = boundary_edges;
   return t;
 }
 
