@@ -158,8 +158,12 @@ inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, c
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
 auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_gaussian)
 {
-  auto mesh = extract_mesh(tm, np);
-  Vertex_curvatures c = compute_curvatures(mesh.topology, mesh.positions, choose_laplacian(np), choose_vertex_area(np),
+  // The cotangent sums and the angles need the corners only; the uniform Laplacian walks the
+  // pattern's rows and the intrinsic triangulation flips its edges.
+  const Laplacian laplacian = choose_laplacian(np);
+  auto mesh = extract_mesh(tm, np, laplacian == Laplacian::cotangent ? Topology_detail::corners : Topology_detail::pattern,
+                           is_parallel<ConcurrencyTag>());
+  Vertex_curvatures c = compute_curvatures(mesh.topology, mesh.positions, laplacian, choose_vertex_area(np),
                                            with_gaussian, is_parallel<ConcurrencyTag>(), choose_mollification(np));
   if(mesh.num_rows_in_no_face() > 0) {  // curvature is undefined there: NaN, and a zero area
     const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -276,7 +280,8 @@ void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gauss
   const auto mesh = internal::extract_mesh(tm, np,
                                            laplacian == Laplacian::intrinsic_delaunay
                                              ? internal::Topology_detail::pattern
-                                             : internal::Topology_detail::corners);
+                                             : internal::Topology_detail::corners,
+                                           internal::is_parallel<ConcurrencyTag>());
   const Eigen::VectorXd K = internal::compute_gaussian_curvature_only(
     mesh.topology, mesh.positions, laplacian, internal::choose_vertex_area(np),
     internal::is_parallel<ConcurrencyTag>(), internal::choose_mollification(np));
