@@ -318,7 +318,9 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
   t.diagonal_slot.resize(n);
   t.on_boundary.assign(n, 0);
   constexpr Index rows_per_part = 16384;
-  std::vector<Pattern_rows> parts(std::size_t(parallel ? (n + rows_per_part - 1) / rows_per_part : 1));
+  // One thread (TBB limited to one, say) gains nothing from parts and would pay their join.
+  const bool in_parts = thread_count(parallel) > 1;
+  std::vector<Pattern_rows> parts(std::size_t(in_parts ? (n + rows_per_part - 1) / rows_per_part : 1));
   if(parts.size() == 1) {
     build_pattern_rows(t, 0, n, parts[0]);
   } else {
