@@ -4,11 +4,13 @@
 
 #include <CGAL/tags.h>
 
+#include <algorithm>
 #include <type_traits>
 
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 #endif
 
@@ -59,11 +61,14 @@ void for_each_part(IndexType n, IndexType part_size, bool parallel, const Body& 
   }, IndexType(1));
 }
 
-/// How many threads a parallel loop may use: 1 when not `parallel` or without TBB.
+/// How many threads a parallel loop may use: the current arena's, within a limit set by
+/// tbb::global_control; 1 when not `parallel` or without TBB.
 inline int thread_count(bool parallel)
 {
 #ifdef CGAL_LINKED_WITH_TBB
-  if(parallel) return tbb::this_task_arena::max_concurrency();
+  if(parallel)
+    return std::max(1, std::min(tbb::this_task_arena::max_concurrency(),
+                                int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism))));
 #endif
   (void)parallel;
   return 1;
