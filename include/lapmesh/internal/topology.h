@@ -17,6 +17,10 @@
 
 #include <algorithm>
 #include <array>
+#include <memory>
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -27,6 +31,38 @@ namespace internal {
 
 /// Index type of vertices, corners and matrix slots; Eigen's default StorageIndex.
 using Index = int;
+
+/// std::allocator whose resize() leaves integers unset instead of zeroing them. The large
+/// arrays of a topology are written in full right after they are sized, in parallel under
+/// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page
+/// faults of every fresh page on one thread.
+template <typename T>
+struct Default_init_allocator : std::allocator<T>
+{
+  template <typename U>
+  struct rebind
+  {
+    using other = Default_init_allocator<U>;
+  };
+  Default_init_allocator() = default;
+  template <typename U>
+  Default_init_allocator(const Default_init_allocator<U>&) noexcept
+  {}
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
+  {
+    ::new(static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args)
+  {
+    ::new(static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+/// An array of a topology: a std::vector that resize() does not zero.
+template <typename T>
+using Topology_array = std::vector<T, Default_init_allocator<T>>;
 
 inline Index next_corner(Index c) { return c % 3 == 2 ? c - 2 : c + 1; }
 inline Index prev_corner(Index c) { return c % 3 == 0 ? c + 2 : c - 1; }
@@ -110,19 +146,19 @@ struct Mesh_topology
   std::vector<Index> triangles;
 
   /// The corners incident to vertex v are vertex_corners[corner_begin[v] .. corner_begin[v+1]).
-  std::vector<Index> corner_begin;
-  std::vector<Index> vertex_corners;
+  Topology_array<Index> corner_begin;
+  Topology_array<Index> vertex_corners;
 
   /// Symmetric sparsity pattern, diagonal included, sorted within each row. Because it is
   /// symmetric, it is at once the CSR and the CSC (Eigen column-major) structure.
-  std::vector<Index> outer;  // num_vertices + 1
-  std::vector<Index> inner;  // number of non-zeros
-  std::vector<Index> diagonal_slot;
+  Topology_array<Index> outer;  // num_vertices + 1
+  Topology_array<Index> inner;  // number of non-zeros
+  Topology_array<Index> diagonal_slot;
 
   /// For the slot (i, j), j != i: the corner opposite the halfedge i->j and the corner
   /// opposite the halfedge j->i (-1 where that side has no face, i.e. on the boundary).
   /// The diagonal slots hold {-1, -1}.
-  std::vector<std::array<Index, 2>> slot_corners;
+  Topology_array<std::array<Index, 2>> slot_corners;
 
   std::vector<char> on_boundary;
 
@@ -225,12 +261,19 @@ inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Inde
 /// start at zero: the part's own arrays, moved or copied into the topology afterwards.
 struct Pattern_rows
 {
-  std::vector<Index> inner;
-  std::vector<std::array<Index, 2>> slot_corners;
+  Topology_array<Index> inner;
+  Topology_array<std::array<Index, 2>> slot_corners;
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
   Index num_edges = 0;
   Index num_boundary_edges = 0;
   bool manifold = true;
+
+  /// Frees the rows once they are joined (the parts together hold as much as the pattern).
+  void release()
+  {
+    Topology_array<Index>().swap(inner);
+    Topology_array<std::array<Index, 2>>().swap(slot_corners);
+  }
 };
 
 /// Builds rows [first, last) of t's pattern into `rows`; writes t.outer[i + 1] and
@@ -357,7 +400,7 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
       t.outer[i + 1] += base;
       t.diagonal_slot[i] += base;
     }
-    std::vector<Index>().swap(parts[std::size_t(p)].inner);
+    parts[std::size_t(p)].release();
   });
   return t;
 }
