@@ -384,6 +384,14 @@ TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
 
 namespace {
 
+/// The vertex count and the flat triangle list of a soup: the input of build_topology().
+std::pair<int, std::vector<int>> flat(const lapmesh::Triangle_soup& soup)
+{
+  std::vector<int> tri;
+  for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
+  return {int(soup.points.size()), tri};
+}
+
 void expect_same_topology(const lapmesh::internal::Mesh_topology& a, const lapmesh::internal::Mesh_topology& b)
 {
   EXPECT_EQ(a.num_vertices, b.num_vertices);
@@ -414,11 +422,6 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
 {
   using lapmesh::internal::build_corner_topology;
   using lapmesh::internal::build_topology;
-  auto flat = [](const lapmesh::Triangle_soup& soup) {
-    std::vector<int> tri;
-    for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
-    return std::make_pair(int(soup.points.size()), tri);
-  };
   auto torus = flat(lapmesh::torus(400, 200));
   auto fins = torus;  // a third face on two edges far apart: two fans, in different parts
   for(int f : {0, int(torus.second.size() / 3) - 1}) {
@@ -493,11 +496,6 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
 {
   using lapmesh::internal::build_corner_topology;
   using lapmesh::internal::build_topology;
-  auto flat = [](const lapmesh::Triangle_soup& soup) {
-    std::vector<int> tri;
-    for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
-    return std::make_pair(int(soup.points.size()), tri);
-  };
   lapmesh::Triangle_soup two = lapmesh::plane_patch(7, 0.3);
   const auto sphere = lapmesh::icosphere(1);
   const int offset = int(two.points.size());

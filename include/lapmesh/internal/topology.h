@@ -164,7 +164,7 @@ struct Mesh_topology
 
   /// False when some edge has more than two faces, or two faces on the same side (faces
   /// that disagree in orientation). The slots of such an edge hold the first face of each
-  /// side; `edge_fans` holds all of them. Only the intrinsic Delaunay Laplacian, through the
+  /// side; `fan_corners` holds all of them. Only the intrinsic Delaunay Laplacian, through the
   /// tufted cover, takes such a mesh (require_manifold()).
   bool manifold = true;
   /// For each non-manifold edge (i < j): its slot in row i, then the corners opposite every
@@ -350,7 +350,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
 /// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex
 /// in no face. An edge with two faces on the same side (three or more faces around an edge,
 /// or two neighbouring faces with opposite orientations) makes the topology non-manifold
-/// (`manifold` false, the edge in `edge_fans`). In parallel (TBB) the rows are built in parts
+/// (`manifold` false, the edge in `fan_slot`). In parallel (TBB) the rows are built in parts
 /// and joined in order: the result equals the serial one.
 inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
 {
