@@ -93,7 +93,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   if(request.want_angles) g.angle.resize(3 * std::size_t(m));
   if(request.want_face_normals) g.face_normal.resize(3 * std::size_t(m));
 
-  std::atomic<Index> first_degenerate{std::numeric_limits<Index>::max()};
+  First_index<Index> first_degenerate;
   const Index* tri = t.triangles.data();
 
   for_each_index(m, parallel, [&](Index f) {
@@ -109,8 +109,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
     const double dot0 = -e2.dot(e1), dot1 = -e0.dot(e2), dot2 = -e1.dot(e0);
 
     if(!face_in_range(std::max(l0, std::max(l1, l2)), dbl_area)) {
-      Index current = first_degenerate.load();
-      while(f < current && !first_degenerate.compare_exchange_weak(current, f)) {}
+      first_degenerate.record(f);
       return;
     }
     const double inv = 1.0 / dbl_area;
@@ -136,8 +135,8 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
       n[0] = cross.x(); n[1] = cross.y(); n[2] = cross.z();
     }
   });
-  if(first_degenerate.load() != std::numeric_limits<Index>::max()) {
-    const Index f = first_degenerate.load();
+  if(!first_degenerate.empty()) {
+    const Index f = first_degenerate.get();
     const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
     const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
     throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);

@@ -190,27 +190,26 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   out.positions.resize(n, 3);
   out.vertices.resize(std::size_t(n));
   out.vertex_rows.resize(std::size_t(n));
-  char all_finite = 1;
+  First_index<Index> non_finite;
   for_each_index(n, parallel, [&](Index i) {
     const Vertex v(static_cast<typename Vertex::size_type>(i));
     const auto& p = get(vpm, v);
     const double x = CGAL::to_double(p.x()), y = CGAL::to_double(p.y()), z = CGAL::to_double(p.z());
     out.positions.row(i) << x, y, z;
-    if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) __atomic_store_n(&all_finite, char(0), __ATOMIC_RELAXED);
+    if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) non_finite.record(i);
     out.vertices[std::size_t(i)] = v;
     out.vertex_rows[std::size_t(i)] = {v, i};
   });
-  if(!all_finite)
-    for(Index i = 0; i < n; ++i)
-      if(!out.positions.row(i).allFinite())
-        throw Mesh_error("vertex " + std::to_string(i) + " has a non-finite coordinate", Mesh_error::Element::vertex, i);
+  if(!non_finite.empty())
+    throw Mesh_error("vertex " + std::to_string(non_finite.get()) + " has a non-finite coordinate",
+                     Mesh_error::Element::vertex, non_finite.get());
   out.triangles.resize(3 * std::size_t(m));
-  char all_triangles = 1;
+  First_index<Index> not_triangle;
   for_each_index(m, parallel, [&](Index f) {
     const auto h0 = tm.halfedge(Face(static_cast<typename Face::size_type>(f)));
     const auto h1 = tm.next(h0), h2 = tm.next(h1);
     if(tm.next(h2) != h0) {
-      __atomic_store_n(&all_triangles, char(0), __ATOMIC_RELAXED);
+      not_triangle.record(f);
       return;
     }
     Index* corner = &out.triangles[3 * std::size_t(f)];
@@ -218,12 +217,9 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
     corner[1] = static_cast<Index>(tm.target(h1));
     corner[2] = static_cast<Index>(tm.target(h2));
   });
-  if(!all_triangles)
-    for(Index f = 0; f < m; ++f) {
-      const auto h = tm.halfedge(Face(static_cast<typename Face::size_type>(f)));
-      if(tm.next(tm.next(tm.next(h))) != h)
-        throw Mesh_error("face " + std::to_string(f) + " is not a triangle", Mesh_error::Element::face, f);
-    }
+  if(!not_triangle.empty())
+    throw Mesh_error("face " + std::to_string(not_triangle.get()) + " is not a triangle", Mesh_error::Element::face,
+                     not_triangle.get());
   return out;
 }
 

@@ -5,6 +5,8 @@
 #include <CGAL/tags.h>
 
 #include <algorithm>
+#include <atomic>
+#include <limits>
 #include <type_traits>
 
 #ifdef CGAL_LINKED_WITH_TBB
@@ -60,6 +62,25 @@ void for_each_part(IndexType n, IndexType part_size, bool parallel, const Body& 
     body(p, begin, n - begin < part_size ? n : begin + part_size);
   }, IndexType(1));
 }
+
+/// The smallest index recorded by a loop that may run in parallel: the first element a check
+/// refuses, the one a serial loop would have stopped at, so that the error names the same one.
+template <typename IndexType>
+class First_index
+{
+public:
+  static constexpr IndexType none = std::numeric_limits<IndexType>::max();
+  void record(IndexType i)
+  {
+    IndexType current = m_first.load(std::memory_order_relaxed);
+    while(i < current && !m_first.compare_exchange_weak(current, i, std::memory_order_relaxed)) {}
+  }
+  bool empty() const { return get() == none; }
+  IndexType get() const { return m_first.load(std::memory_order_relaxed); }
+
+private:
+  std::atomic<IndexType> m_first{none};
+};
 
 /// How many threads a parallel loop may use: the current arena's, within a limit set by
 /// tbb::global_control; 1 when not `parallel` or without TBB.

@@ -186,22 +186,16 @@ inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool par
     const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
     return a >= 0 && b >= 0 && c >= 0 && a < n && b < n && c < n && a != b && b != c && a != c;
   };
-  if(parallel) {  // find out whether one is invalid; the serial loop below names the first
-    char all_valid = 1;
-    for_each_index(m, true, [&](Index f) {
-      if(!valid(f)) __atomic_store_n(&all_valid, char(0), __ATOMIC_RELAXED);
-    });
-    if(all_valid) return;
-  }
-  for(Index f = 0; f < m; ++f) {
-    if(valid(f)) continue;
-    const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
-    if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
-      throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " +
-                         std::to_string(n) + ")",
-                       Mesh_error::Element::face, f);
-    throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
-  }
+  First_index<Index> invalid;
+  for_each_index(m, parallel, [&](Index f) {
+    if(!valid(f)) invalid.record(f);
+  });
+  if(invalid.empty()) return;
+  const Index f = invalid.get(), a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+  if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
+    throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " + std::to_string(n) + ")",
+                     Mesh_error::Element::face, f);
+  throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
 }
 
 /// How many ranges for_each_vertex_range() splits n vertices into: one serially, one per
