@@ -170,13 +170,13 @@ TEST(Spectral, CompletenessOnHighlySymmetricSphere)
   // the same pattern (what the solver passes).
   lapmesh::internal::Fill_permutation identity(mS.rows());
   identity.setIdentity();
-  EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, identity), b.size());
+  EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(pencil.stiffness, pencil.mass, tau, identity), b.size());
   Eigen::SparseMatrix<double> K = mS;
   K.diagonal() += 1e-2 * pencil.mass;
   const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt(K);
   const auto P = lapmesh::internal::fill_permutation(llt);
   ASSERT_FALSE(P.indices() == identity.indices());  // a real reordering
-  EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, P), b.size());
+  EXPECT_EQ(lapmesh::internal::count_eigenvalues_below(pencil.stiffness, pencil.mass, tau, P), b.size());
 }
 
 #ifdef LAPMESH_HAS_CHOLMOD
@@ -228,7 +228,7 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
     const double tau = 200.0 / pencil.mass.sum();
     ASSERT_TRUE(ldlt.factorize(ldlt.permuted_lower(mS), pencil.mass, tau));
     EXPECT_EQ(ldlt.negative_pivots(),
-              lapmesh::internal::count_eigenvalues_below(mS, pencil.mass, tau, ldlt.permutation()));
+              lapmesh::internal::count_eigenvalues_below(pencil.stiffness, pencil.mass, tau, ldlt.permutation()));
   }
   // A zero pivot is refused: every diagonal entry shifted to zero.
   const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(2, 1.0)));
@@ -535,11 +535,30 @@ TEST(Spectral, TallProductsInRowPanelsEqualEigenProducts)
   MatrixXd W2 = W;
   lapmesh::internal::panel_subtract_product(V, C, W2);
   EXPECT_LE((W2 - (W - V * C)).cwiseAbs().maxCoeff(), 1e-12 * double(n));
-  MatrixXd Y(n, 4);
-  Y.setConstant(std::numeric_limits<double>::quiet_NaN());
+  // The restart's and the result's product, in place: the first 4 columns become V[:, 0:7] Z.
   const MatrixXd Z = MatrixXd::Random(7, 4);
-  lapmesh::internal::panel_product_nn(V, Z, Y);
-  EXPECT_LE((Y - V * Z).cwiseAbs().maxCoeff(), 1e-12);
+  MatrixXd rotated = big, panel;
+  lapmesh::internal::rotate_in_place(rotated, 7, Z, panel);
+  const MatrixXd Y_ref = big.leftCols(7) * Z;
+  EXPECT_LE((rotated.leftCols(4) - Y_ref).cwiseAbs().maxCoeff(), 1e-12 * Y_ref.cwiseAbs().maxCoeff());
+  EXPECT_TRUE(rotated.rightCols(8) == big.rightCols(8));
+}
+
+TEST(Spectral, AscendingPairsReorderAndScaleInPlace)
+{
+  // Eigenvalues in an order whose permutation has a 3-cycle, a fixed point and a 2-cycle.
+  const Eigen::VectorXd lambda = (Eigen::VectorXd(6) << 3, 1, 2, 4, 6, 5).finished();
+  const Eigen::Index source[6] = {1, 2, 0, 3, 5, 4};  // column j of the result comes from here
+  const Eigen::MatrixXd Y = Eigen::MatrixXd::Random(50, 6);
+  const Eigen::VectorXd sqrt_mass = Eigen::VectorXd::Random(50).cwiseAbs().array() + 0.5;
+  Eigen::MatrixXd moved = Y;
+  const double* storage = moved.data();
+  const lapmesh::Spectral_pairs p = lapmesh::internal::ascending_pairs(lambda, std::move(moved), sqrt_mass);
+  EXPECT_EQ(p.vectors.data(), storage);  // no copy of the vectors
+  for(Eigen::Index j = 0; j < 6; ++j) {
+    EXPECT_EQ(p.values[j], double(j + 1));
+    EXPECT_TRUE(p.vectors.col(j) == Y.col(source[j]).cwiseQuotient(sqrt_mass)) << j;
+  }
 }
 
 TEST(Spectral, BlockLanczosOnKnownSpectra)

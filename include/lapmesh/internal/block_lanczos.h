@@ -56,16 +56,9 @@ inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, c
   tall_gemm(false, -1.0, V, C, 1.0, W);
 }
 
-/// Y = V Z for a tall V and a small Z.
-inline void panel_product_nn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& Z,
-                             Eigen::MatrixXd& Y)
-{
-  Y.resize(V.rows(), Z.cols());
-  tall_gemm(false, 1.0, V, Z, 0.0, Y);
-}
-
-/// V[:, 0:Z.cols()] = V[:, 0:used] Z, in row panels that stay in cache: a thick restart needs
-/// no second tall matrix (on a large mesh its fresh pages cost more than the product).
+/// V[:, 0:Z.cols()] = V[:, 0:used] Z, in row panels that stay in cache: a thick restart and
+/// the final Ritz vectors need no second tall matrix (on a large mesh its fresh pages cost more
+/// than the product).
 inline void rotate_in_place(Eigen::MatrixXd& V, Eigen::Index used, const Eigen::Ref<const Eigen::MatrixXd>& Z,
                             Eigen::MatrixXd& panel)
 {
@@ -96,7 +89,9 @@ struct Block_lanczos_result
   int restarts = 0;
 };
 
-/// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X.
+/// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X, X a block of
+/// columns of the basis (an `apply` that takes it as `Eigen::Ref<const Eigen::MatrixXd>` reads
+/// it in place; one that takes `const Eigen::MatrixXd&` gets a copy).
 /// `on_step(operations)` is called after every block step (progress reports).
 template <typename Apply>
 Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, Apply&& apply,
@@ -185,13 +180,12 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
     V.leftCols(b) = W;
   }
   Index processed = 0, filled = b, restart_start = 0;
-  MatrixXd X, W, C, R, Cg, kept, next;
+  MatrixXd W, C, R, Cg, kept, next;
   for(int restart = 0;; ++restart) {
     while(filled <= m_max) {
       const Index cur = processed;
-      X = V.middleCols(cur, b);
       W.resize(n, b);
-      apply(static_cast<const MatrixXd&>(X), W);
+      apply(V.middleCols(cur, b), W);
       out.operations += b;
       // Three-term recurrence against the last two blocks (the large components), then one pass
       // against the whole basis; T gets the sum of both coefficient sets. The first block after
@@ -240,8 +234,12 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
               opt.tolerance * std::max(std::abs(theta[converged]), 1e-300 + 1e-14 * std::abs(theta[0])))
         ++converged;
       if(converged >= nev) {
+        // The Ritz vectors overwrite the basis, which then shrinks in place: no second tall
+        // matrix beside the basis at the peak of the run.
         out.values = theta.head(nev);
-        panel_product_nn(V.leftCols(processed), Z.leftCols(nev), out.vectors);
+        rotate_in_place(V, processed, Z.leftCols(nev), kept);
+        V.conservativeResize(Eigen::NoChange, nev);
+        out.vectors = std::move(V);
         out.restarts = restart;
         return out;
       }

@@ -55,6 +55,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace lapmesh {
 
@@ -102,18 +103,19 @@ class Null_space_deflation
 {
 public:
   Null_space_deflation() = default;
-  Null_space_deflation(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
+  /// `stiffness` is S (or -S: the components and the row sums do not depend on the sign).
+  Null_space_deflation(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass)
   {
-    const Eigen::Index n = minus_S.rows();
+    const Eigen::Index n = stiffness.rows();
     std::vector<Eigen::Index> parent(static_cast<std::size_t>(n));
     std::iota(parent.begin(), parent.end(), Eigen::Index(0));
     auto root = [&](Eigen::Index v) {
       while(parent[std::size_t(v)] != v) v = parent[std::size_t(v)] = parent[std::size_t(parent[std::size_t(v)])];
       return v;
     };
-    for(Eigen::Index j = 0; j < minus_S.outerSize(); ++j) {
+    for(Eigen::Index j = 0; j < stiffness.outerSize(); ++j) {
       double row_sum = 0, row_abs = 0;  // S is symmetric: column j is row j
-      for(Eigen::SparseMatrix<double>::InnerIterator it(minus_S, j); it; ++it) {
+      for(Eigen::SparseMatrix<double>::InnerIterator it(stiffness, j); it; ++it) {
         row_sum += it.value();
         row_abs += std::abs(it.value());
         if(it.value() != 0 && it.index() != j) {
@@ -226,14 +228,23 @@ inline void throw_inertia_failure(double tau)
                         std::to_string(tau) + ")");
 }
 
+/// K = -S - sigma M, a matrix of its own. The solver's stages take S itself: a negated copy held
+/// for the whole run would add to its peak memory.
+inline Eigen::SparseMatrix<double> shifted_pencil(const Eigen::SparseMatrix<double>& stiffness,
+                                                  const Eigen::VectorXd& mass, double sigma)
+{
+  Eigen::SparseMatrix<double> K = -stiffness;
+  K.diagonal() -= sigma * mass;
+  return K;
+}
+
 /// Number of eigenvalues of -S phi = lambda M phi strictly below tau (Sylvester's inertia): the
 /// negative pivots of the simplicial LDL^T factorisation of P (-S - tau M) P^T, P a
 /// fill-reducing ordering.
-inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+inline Eigen::Index count_eigenvalues_below(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                             double tau, const Fill_permutation& P)
 {
-  Eigen::SparseMatrix<double> K = minus_S;
-  K.diagonal() -= tau * mass;
+  const Eigen::SparseMatrix<double> K = shifted_pencil(stiffness, mass, tau);
   Eigen::SparseMatrix<double> Kp(K.rows(), K.cols());
   Kp.selfadjointView<Eigen::Lower>() = K.selfadjointView<Eigen::Lower>().twistedBy(P);
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(Kp);
@@ -249,14 +260,14 @@ template <typename Factor>
 class Eigenvalue_counter
 {
 public:
-  Eigenvalue_counter(const Factor& factor, const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
-      : m_minus_S(minus_S), m_mass(mass), m_P(fill_permutation(factor))
+  Eigenvalue_counter(const Factor& factor, const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass)
+      : m_stiffness(stiffness), m_mass(mass), m_P(fill_permutation(factor))
   {}
-  Eigen::Index below(double tau) const { return count_eigenvalues_below(m_minus_S, m_mass, tau, m_P); }
+  Eigen::Index below(double tau) const { return count_eigenvalues_below(m_stiffness, m_mass, tau, m_P); }
   static constexpr bool overwrites_factor() { return false; }
 
 private:
-  const Eigen::SparseMatrix<double>& m_minus_S;
+  const Eigen::SparseMatrix<double>& m_stiffness;
   const Eigen::VectorXd& m_mass;
   Fill_permutation m_P;
 };
@@ -268,10 +279,12 @@ private:
 class Shifted_supernodal_ldlt
 {
 public:
-  Shifted_supernodal_ldlt(const cholmod_factor& structure, const Eigen::SparseMatrix<double>& minus_S,
+  Shifted_supernodal_ldlt(const cholmod_factor& structure, const Eigen::SparseMatrix<double>& stiffness,
                           const Eigen::VectorXd& mass)
-      : m_ldlt(structure), m_lower(m_ldlt.permuted_lower(minus_S)), m_mass(mass)
-  {}
+      : m_ldlt(structure), m_lower(m_ldlt.permuted_lower(stiffness)), m_mass(mass)
+  {
+    m_lower *= -1.0;  // in place
+  }
   /// Factorises at sigma, into `storage` (values_size() doubles, see Supernodal_ldlt::factorize_in)
   /// or, without it, into its own memory. False on a zero pivot.
   bool factorize_at(double sigma, double* storage = nullptr)
@@ -298,9 +311,9 @@ template <>
 class Eigenvalue_counter<Cholmod_supernodal_llt>
 {
 public:
-  Eigenvalue_counter(Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& minus_S,
+  Eigenvalue_counter(Cholmod_supernodal_llt& factor, const Eigen::SparseMatrix<double>& stiffness,
                      const Eigen::VectorXd& mass)
-      : m_factor(factor), m_shifted(*factor.factor(), minus_S, mass)
+      : m_factor(factor), m_shifted(*factor.factor(), stiffness, mass)
   {}
   Eigen::Index below(double tau) const
   {
@@ -324,11 +337,11 @@ void factorise_or_throw(Factor& f, const Eigen::SparseMatrix<double>& K)
                           "(the pencil is not positive semidefinite, or M is not positive)");
 }
 
-inline Spectral_pairs dense_smallest_eigenpairs(const Eigen::SparseMatrix<double>& minus_S,
+inline Spectral_pairs dense_smallest_eigenpairs(const Eigen::SparseMatrix<double>& stiffness,
                                                 const Eigen::VectorXd& mass, Eigen::Index m)
 {
   const Eigen::VectorXd isq = mass.cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd A = isq.asDiagonal() * Eigen::MatrixXd(minus_S) * isq.asDiagonal();
+  const Eigen::MatrixXd A = -(isq.asDiagonal() * Eigen::MatrixXd(stiffness) * isq.asDiagonal());
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(A);
   if(es.info() != Eigen::Success) throw Numerical_error("spectral solver: the dense eigen-solver did not converge");
   Spectral_pairs out;
@@ -336,6 +349,47 @@ inline Spectral_pairs dense_smallest_eigenpairs(const Eigen::SparseMatrix<double
   out.vectors = isq.asDiagonal() * es.eigenvectors().leftCols(m);
   out.dense = true;
   out.attempts = 1;
+  return out;
+}
+
+/// Column j of X becomes the former column order[j] (order a permutation), in place: each
+/// cycle of the permutation is followed with one spare column.
+inline void reorder_columns(Eigen::MatrixXd& X, const std::vector<Eigen::Index>& order)
+{
+  const std::size_t n = std::size_t(X.rows());
+  auto column = [&](std::size_t j) { return X.data() + j * n; };
+  std::vector<bool> placed(order.size(), false);
+  std::vector<double> spare;
+  for(std::size_t start = 0; start < order.size(); ++start) {
+    if(placed[start] || std::size_t(order[start]) == start) continue;
+    spare.assign(column(start), column(start) + n);
+    std::size_t j = start;
+    for(;;) {
+      placed[j] = true;
+      const std::size_t from = std::size_t(order[j]);
+      if(from == start) break;
+      std::copy_n(column(from), n, column(j));
+      j = from;
+    }
+    std::copy_n(spare.data(), n, column(j));
+  }
+}
+
+/// The pairs (lambda_j, M^-1/2 y_j) in ascending lambda, from the eigenpairs (lambda_j, y_j) of
+/// the standardised problem. The vectors are reordered and scaled in place: on a large mesh a
+/// copy would be the run's peak memory.
+inline Spectral_pairs ascending_pairs(const Eigen::VectorXd& lambda, Eigen::MatrixXd&& Y,
+                                      const Eigen::VectorXd& sqrt_mass)
+{
+  std::vector<Eigen::Index> order(std::size_t(lambda.size()));
+  std::iota(order.begin(), order.end(), Eigen::Index(0));
+  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return lambda[a] < lambda[b]; });
+  Spectral_pairs out;
+  out.values.resize(lambda.size());
+  for(Eigen::Index j = 0; j < lambda.size(); ++j) out.values[j] = lambda[order[std::size_t(j)]];
+  out.vectors = std::move(Y);
+  reorder_columns(out.vectors, order);
+  out.vectors.array().colwise() /= sqrt_mass.array();
   return out;
 }
 
@@ -354,19 +408,9 @@ Spectral_pairs spectra_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
     throw Numerical_error("spectral solver: Lanczos did not converge to " + std::to_string(m) + " eigenpairs in " +
                           std::to_string(opt.max_restarts) + " restarts (tolerance " +
                           std::to_string(opt.tolerance) + "); raise number_of_iterations or the tolerance");
-  Spectral_pairs out;
   const Eigen::VectorXd vals = eigs.eigenvalues();
-  const Eigen::MatrixXd Y = eigs.eigenvectors();
   if(vals.size() < m) throw Numerical_error("spectral solver: fewer converged eigenpairs than requested");
-  std::vector<Eigen::Index> order(std::size_t(vals.size()));
-  std::iota(order.begin(), order.end(), Eigen::Index(0));
-  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return vals[a] < vals[b]; });
-  out.values.resize(vals.size());
-  out.vectors.resize(n, vals.size());
-  for(Eigen::Index j = 0; j < vals.size(); ++j) {
-    out.values[j] = vals[order[std::size_t(j)]];
-    out.vectors.col(j) = Y.col(order[std::size_t(j)]).cwiseQuotient(sqrt_mass);
-  }
+  Spectral_pairs out = ascending_pairs(vals, eigs.eigenvectors(), sqrt_mass);
   out.operations = op.operations();
   out.shift = sigma;
   return out;
@@ -374,16 +418,16 @@ Spectral_pairs spectra_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
 
 /// Y = D K^-1 D X, D = diag(scale), with the factor of K.
 template <typename Factor>
-void scaled_solve(const Factor& factor, const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y,
-                  Eigen::MatrixXd& buffer)
+void scaled_solve(const Factor& factor, const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                  Eigen::MatrixXd& Y, Eigen::MatrixXd& buffer)
 {
   buffer = scale.asDiagonal() * X;
   Y = factor.solve(buffer);
   Y = scale.asDiagonal() * Y;
 }
 #ifdef LAPMESH_HAS_CHOLMOD
-inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::VectorXd& scale, const Eigen::MatrixXd& X,
-                         Eigen::MatrixXd& Y, Eigen::MatrixXd&)
+inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::VectorXd& scale,
+                         const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y, Eigen::MatrixXd&)
 {
   factor.scaled_solve(scale, X, Y);
 }
@@ -402,20 +446,13 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(opt.ncv_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
   Eigen::MatrixXd rhs;
-  auto apply = [&](const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) { scaled_solve(factor, sqrt_mass, X, Y, rhs); };
+  auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
+    scaled_solve(factor, sqrt_mass, X, Y, rhs);
+  };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
-  // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma, sorted ascending.
+  // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma.
   const Eigen::VectorXd lambda = (1.0 / r.values.array() + sigma).matrix();
-  std::vector<Eigen::Index> order(std::size_t(lambda.size()));
-  std::iota(order.begin(), order.end(), Eigen::Index(0));
-  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return lambda[a] < lambda[b]; });
-  Spectral_pairs out;
-  out.values.resize(lambda.size());
-  out.vectors.resize(n, lambda.size());
-  for(Eigen::Index j = 0; j < lambda.size(); ++j) {
-    out.values[j] = lambda[order[std::size_t(j)]];
-    out.vectors.col(j) = r.vectors.col(order[std::size_t(j)]).cwiseQuotient(sqrt_mass);
-  }
+  Spectral_pairs out = ascending_pairs(lambda, std::move(r.vectors), sqrt_mass);
   out.operations = r.operations;
   out.shift = sigma;
   return out;
@@ -447,17 +484,17 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
 class Shifted_ldlt
 {
 public:
-  Shifted_ldlt(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass)
+  Shifted_ldlt(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass)
 #ifdef LAPMESH_HAS_CHOLMOD
   {
     Cholmod_supernodal_llt analysis;
-    analysis.analyzePattern(minus_S);
+    analysis.analyzePattern(stiffness);  // the pattern only
     if(analysis.info() != Eigen::Success || !analysis.factor())
       throw Numerical_error("spectral solver: the analysis of -S - sigma M failed");
-    m_ldlt.emplace(*analysis.factor(), minus_S, mass);
+    m_ldlt.emplace(*analysis.factor(), stiffness, mass);
   }
 #else
-      : m_minus_S(minus_S), m_mass(mass)
+      : m_stiffness(stiffness), m_mass(mass)
   {}
 #endif
   /// Factorises at sigma; returns the number of eigenvalues below sigma.
@@ -466,8 +503,7 @@ public:
 #ifdef LAPMESH_HAS_CHOLMOD
     const bool ok = m_ldlt->factorize_at(sigma);
 #else
-    Eigen::SparseMatrix<double> K = m_minus_S;
-    K.diagonal() -= sigma * m_mass;
+    const Eigen::SparseMatrix<double> K = shifted_pencil(m_stiffness, m_mass, sigma);
     if(!m_analysed) m_simplicial.analyzePattern(K);
     m_analysed = true;
     m_simplicial.factorize(K);
@@ -496,7 +532,7 @@ private:
 #ifdef LAPMESH_HAS_CHOLMOD
   std::optional<Shifted_supernodal_ldlt> m_ldlt;
 #else
-  const Eigen::SparseMatrix<double>& m_minus_S;
+  const Eigen::SparseMatrix<double>& m_stiffness;
   const Eigen::VectorXd& m_mass;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> m_simplicial;
   bool m_analysed = false;
@@ -518,7 +554,7 @@ private:
 /// above it, a window that does not reach back to the accepted range pulls the shift down, and
 /// a window whose new values hold no gap before its edge (a cluster wider than the window), or
 /// that fails the inertia count (a missed copy of a repeated value), is widened.
-inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
   using clock = std::chrono::steady_clock;
@@ -528,12 +564,12 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
     throw Numerical_error("spectral solver: k = " + std::to_string(k) + " needs the dense solver, which is limited to " +
                           std::to_string(opt.dense_limit) + " vertices");
   const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
-  const Null_space_deflation null_space(minus_S, mass);
+  const Null_space_deflation null_space(stiffness, mass);
   const Eigen::Index c = null_space.count();                  // 0 on a connected mesh
   const Eigen::Index max_window = std::max<Eigen::Index>(1, n - c - 2);  // Spectra needs nev < n
   const Eigen::Index B = std::min<Eigen::Index>(std::max<Eigen::Index>(opt.band_size, 8), max_window);
   constexpr int max_attempts = 12;        // per band; a widening multiplies the window by 1.5
-  Shifted_ldlt ldlt(minus_S, mass);
+  Shifted_ldlt ldlt(stiffness, mass);
   const Deflated_solve<Shifted_ldlt> deflated(ldlt, null_space, mass);
   auto factor_at = [&](double sigma) { return ldlt.factorize_at(sigma); };
   int band = 0;
@@ -645,7 +681,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& minus
 }
 
 template <typename Factor>
-Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus_S, const Eigen::VectorXd& mass,
+Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
   using clock = std::chrono::steady_clock;
@@ -661,7 +697,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
   // Small problems, or nearly the whole spectrum: Krylov needs m < n, use a dense solver.
   if(k + extra >= n / 2 && n <= opt.dense_limit) {
     report("dense eigen-solver", 0);
-    return dense_smallest_eigenpairs(minus_S, mass, std::min<Eigen::Index>(n, k + extra));
+    return dense_smallest_eigenpairs(stiffness, mass, std::min<Eigen::Index>(n, k + extra));
   }
   if(k >= n - 1)
     throw Numerical_error("spectral solver: k = " + std::to_string(k) + " needs the dense solver, which is limited to " +
@@ -669,15 +705,15 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
 
   const double sigma = -opt.shift_factor / mass.sum();
   const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
-  Eigen::SparseMatrix<double> K = minus_S;
-  K.diagonal() -= sigma * mass;
+  Eigen::SparseMatrix<double> K = shifted_pencil(stiffness, mass, sigma);
   report("factorising", 0);
   Factor factor;
   factorise_or_throw(factor, K);
   K = Eigen::SparseMatrix<double>();
+  // Made at the first check, after the Krylov basis is gone: its matrix and structure would
+  // otherwise add to the run's peak memory.
   std::optional<Eigenvalue_counter<Factor>> counter;
-  if(opt.check_completeness) counter.emplace(factor, minus_S, mass);
-  const Null_space_deflation null_space(minus_S, mass);
+  const Null_space_deflation null_space(stiffness, mass);
   const Eigen::Index c = null_space.count();  // 0 on a connected mesh
   const Deflated_solve<Factor> deflated(factor, null_space, mass);
   long long total_ops = 0;
@@ -700,6 +736,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
     if(j >= 0) {
       report("checking completeness", total_ops);
       const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
+      if(!counter) counter.emplace(factor, stiffness, mass);
       const Eigen::Index below = counter->below(tau);
       factor_overwritten = counter->overwrites_factor();
       if(below == j + 1) {
@@ -720,8 +757,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& minus
     extra = 2 * extra + 4;
     if(factor_overwritten) {  // the check used the factor's memory: factorise again (same analysis)
       report("factorising", total_ops);
-      K = minus_S;
-      K.diagonal() -= sigma * mass;
+      K = shifted_pencil(stiffness, mass, sigma);
       factor.factorize(K);
       if(factor.info() != Eigen::Success) factorise_or_throw(factor, K);
       K = Eigen::SparseMatrix<double>();
@@ -738,7 +774,6 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
     throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
-  const Eigen::SparseMatrix<double> minus_S = -stiffness;
   // Measured (doc/spectral.md): one block Lanczos run is faster up to k ~ 100-200; above,
   // its basis (2k vectors, re-orthogonalised at every step) costs more than bands of 40.
   const int band_size = opt.band_size >= 0 ? opt.band_size : (k >= 200 ? 40 : 0);
@@ -747,18 +782,18 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
     Spectral_options o = opt;
     o.band_size = band_size;
     o.method = Krylov_method::spectra;  // interior shifts: tuned and tested with Spectra
-    return banded_eigenpairs(minus_S, mass, k, o);
+    return banded_eigenpairs(stiffness, mass, k, o);
   }
   if(opt.cholesky == Sparse_cholesky::cholmod) {
 #ifdef LAPMESH_HAS_CHOLMOD
-    return smallest_eigenpairs_with<Cholmod_supernodal_llt>(
-      minus_S, mass, k, opt);
+    return smallest_eigenpairs_with<Cholmod_supernodal_llt>(stiffness, mass, k, opt);
 #else
     throw std::invalid_argument("Sparse_cholesky::cholmod requested, but lapmesh was compiled without "
                                 "LAPMESH_HAS_CHOLMOD");
 #endif
   }
-  return smallest_eigenpairs_with<Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>(minus_S, mass, k, opt);
+  using Simplicial_llt = Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
+  return smallest_eigenpairs_with<Simplicial_llt>(stiffness, mass, k, opt);
 }
 
 } // namespace internal
