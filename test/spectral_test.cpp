@@ -251,37 +251,50 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
   // baseline and AVX2 builds against each other where the CPU has AVX2.
   Mesh elephant;
   lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  using Supernodes = lapmesh::internal::Cholmod_supernodal_llt::Supernodes;
   for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
     const auto pencil = lapmesh::laplacian_pencil(m);
     Eigen::SparseMatrix<double> K = -pencil.stiffness;
     K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
-    lapmesh::internal::Cholmod_supernodal_llt llt;
-    llt.compute(K);
-    ASSERT_EQ(llt.info(), Eigen::Success);
     const Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower> simplicial(K);
     ASSERT_EQ(simplicial.info(), Eigen::Success);
     const Eigen::VectorXd scale = pencil.mass.cwiseSqrt();
-    for(int width : {1, 2, 3, 4, 5, 6, 7, 8, 11}) {
-      const Eigen::MatrixXd X = Eigen::MatrixXd::Random(K.rows(), width);
-      Eigen::MatrixXd Y;
-      llt.scaled_solve(scale, X, Y);
-      const Eigen::MatrixXd expected =
-        scale.asDiagonal() * Eigen::MatrixXd(simplicial.solve(Eigen::MatrixXd(scale.asDiagonal() * X)));
-      ASSERT_EQ(Y.rows(), K.rows());
-      ASSERT_EQ(Y.cols(), width);
-      EXPECT_LT((Y - expected).cwiseAbs().maxCoeff(), 1e-10 * expected.cwiseAbs().maxCoeff()) << width;
-    }
+    std::size_t merged_values = 0, merged_supernodes = 0;
+    for(Supernodes supernodes : {Supernodes::merged, Supernodes::compact}) {
+      lapmesh::internal::Cholmod_supernodal_llt llt;
+      llt.set_supernodes(supernodes);
+      llt.compute(K);
+      ASSERT_EQ(llt.info(), Eigen::Success);
+      // Compact supernodes: more of them, fewer explicit zeros in the factor.
+      if(supernodes == Supernodes::merged) {
+        merged_values = llt.factor()->xsize;
+        merged_supernodes = llt.factor()->nsuper;
+      } else {
+        EXPECT_LT(llt.factor()->xsize, merged_values);
+        EXPECT_GT(llt.factor()->nsuper, merged_supernodes);
+      }
+      for(int width : {1, 2, 3, 4, 5, 6, 7, 8, 11}) {
+        const Eigen::MatrixXd X = Eigen::MatrixXd::Random(K.rows(), width);
+        Eigen::MatrixXd Y;
+        llt.scaled_solve(scale, X, Y);
+        const Eigen::MatrixXd expected =
+          scale.asDiagonal() * Eigen::MatrixXd(simplicial.solve(Eigen::MatrixXd(scale.asDiagonal() * X)));
+        ASSERT_EQ(Y.rows(), K.rows());
+        ASSERT_EQ(Y.cols(), width);
+        EXPECT_LT((Y - expected).cwiseAbs().maxCoeff(), 1e-10 * expected.cwiseAbs().maxCoeff()) << width;
+      }
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
-    if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-      const lapmesh::internal::Supernodal_factor_view view = llt.factor_view();
-      const Eigen::MatrixXd B = Eigen::MatrixXd::Random(4, K.rows());  // 4 values per row, side by side
-      Eigen::MatrixXd baseline = B, avx2 = B;
-      lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), 4);
-      lapmesh::internal::supernodal_kernels::solve_avx2(view, avx2.data(), 4);
-      EXPECT_LT((baseline - avx2).cwiseAbs().maxCoeff(), 1e-12 * baseline.cwiseAbs().maxCoeff());
-      EXPECT_GT(baseline.cwiseAbs().maxCoeff(), 0.0);
-    }
+      if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        const lapmesh::internal::Supernodal_factor_view view = llt.factor_view();
+        const Eigen::MatrixXd B = Eigen::MatrixXd::Random(4, K.rows());  // 4 values per row, side by side
+        Eigen::MatrixXd baseline = B, avx2 = B;
+        lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), 4);
+        lapmesh::internal::supernodal_kernels::solve_avx2(view, avx2.data(), 4);
+        EXPECT_LT((baseline - avx2).cwiseAbs().maxCoeff(), 1e-12 * baseline.cwiseAbs().maxCoeff());
+        EXPECT_GT(baseline.cwiseAbs().maxCoeff(), 0.0);
+      }
 #endif
+    }
   }
 }
 #endif

@@ -115,10 +115,31 @@ public:
                 ///< more than AMD's.
   };
 
+  /// How freely columns are merged into supernodes, at the price of explicit zeros in the factor.
+  enum class Supernodes {
+    merged,  ///< CHOLMOD's default: the largest supernodes, the fastest factorisation
+    compact  ///< fewer explicit zeros: a smaller factor, which every solve reads faster; for a
+             ///< factorisation that serves many solves (shift-invert Krylov methods)
+  };
+
   explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd)
   {
     route_cholmod_messages(cholmod());
     set_ordering(ordering);
+  }
+  /// Takes effect at the next analyzePattern().
+  void set_supernodes(Supernodes supernodes)
+  {
+    // CHOLMOD merges two adjacent supernodes of ns columns in all when ns <= nrelax[0], when no
+    // zero is added, or when the merged share of zeros is below zrelax[0] (ns <= nrelax[1]),
+    // zrelax[1] (ns <= nrelax[2]) or zrelax[2].
+    const bool merged = supernodes == Supernodes::merged;
+    cholmod().nrelax[0] = 4;
+    cholmod().nrelax[1] = merged ? 16 : 8;
+    cholmod().nrelax[2] = merged ? 48 : 16;
+    cholmod().zrelax[0] = merged ? 0.8 : 0.2;
+    cholmod().zrelax[1] = merged ? 0.1 : 0.02;
+    cholmod().zrelax[2] = merged ? 0.05 : 0.01;
   }
   void set_ordering(Ordering ordering)
   {
@@ -153,7 +174,7 @@ public:
   /// rows are gathered, scaled, into a buffer kept between calls; blocks of 2 to 8 columns are
   /// solved by lapmesh's supernodal kernels (internal/supernodal_solve.h), others by CHOLMOD's
   /// two supernodal triangular solves in place.
-  void scaled_solve(const Eigen::VectorXd& scale, const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) const
+  void scaled_solve(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) const
   {
     const Eigen::Index n = X.rows(), nrhs = X.cols();
     const int* perm = permutation();

@@ -328,6 +328,18 @@ private:
 };
 #endif
 
+/// The shift-invert factor is read by every Krylov step: a CHOLMOD factor is made with compact
+/// supernodes (doc/benchmarks.md: smaller, and faster over a run, than CHOLMOD's default).
+template <typename Factor>
+void prepare_for_many_solves(Factor&)
+{}
+#ifdef LAPMESH_HAS_CHOLMOD
+inline void prepare_for_many_solves(Cholmod_supernodal_llt& f)
+{
+  f.set_supernodes(Cholmod_supernodal_llt::Supernodes::compact);
+}
+#endif
+
 template <typename Factor>
 void factorise_or_throw(Factor& f, const Eigen::SparseMatrix<double>& K)
 {
@@ -708,6 +720,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
   Eigen::SparseMatrix<double> K = shifted_pencil(stiffness, mass, sigma);
   report("factorising", 0);
   Factor factor;
+  prepare_for_many_solves(factor);
   factorise_or_throw(factor, K);
   K = Eigen::SparseMatrix<double>();
   // Made at the first check, after the Krylov basis is gone: its matrix and structure would
