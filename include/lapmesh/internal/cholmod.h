@@ -174,7 +174,8 @@ public:
   /// rows are gathered, scaled, into a buffer kept between calls; blocks of 2 to 8 columns are
   /// solved by lapmesh's supernodal kernels (internal/supernodal_solve.h), others by CHOLMOD's
   /// two supernodal triangular solves in place.
-  void scaled_solve(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) const
+  void scaled_solve(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                    Eigen::MatrixXd& Y) const
   {
     const Eigen::Index n = X.rows(), nrhs = X.cols();
     const int* perm = permutation();
