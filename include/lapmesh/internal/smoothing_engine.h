@@ -219,7 +219,7 @@ private:
     const int planned_factorizations = m_rebuild ? m_s.iterations : 1;
     m_solver = std::make_unique<Spd_direct_solver>(m_s.use_cholmod, m_s.external_solver);
     m_solver->analyze(m_system->matrix(), planned_factorizations);
-    remember_pattern();
+    if(pattern_may_change()) remember_pattern();
     m_report.solver = m_solver->name();
     m_report.analysis_seconds += seconds_since(t0);
     const Index nf = m_system->size();
@@ -271,7 +271,7 @@ private:
     m_factorized = false;
     // The intrinsic Delaunay operator's pattern follows its flips: a new pattern needs a new
     // free block and a new symbolic analysis.
-    if(!is_explicit() && m_rebuild_stiffness && m_s.laplacian == Laplacian::intrinsic_delaunay && pattern_changed()) {
+    if(!is_explicit() && pattern_may_change() && pattern_changed()) {
       const auto t1 = Clock::now();
       m_system.emplace(m_pencil.stiffness, m_free_mask);
       m_solver->analyze(m_system->matrix(), m_s.iterations - it);
@@ -280,6 +280,9 @@ private:
     }
   }
 
+  /// Only the intrinsic Delaunay operator, rebuilt, changes its pattern (its flips follow the
+  /// positions); the others keep the topology's, and no copy of it is kept.
+  bool pattern_may_change() const { return m_rebuild_stiffness && m_s.laplacian == Laplacian::intrinsic_delaunay; }
   void remember_pattern()
   {
     const auto& S = m_pencil.stiffness;
