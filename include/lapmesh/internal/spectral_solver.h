@@ -283,7 +283,7 @@ public:
                           const Eigen::VectorXd& mass)
       : m_ldlt(structure), m_lower(m_ldlt.permuted_lower(stiffness)), m_mass(mass)
   {
-    m_lower *= -1.0;  // in place
+    m_lower *= -1.0;  // -S from S without a second matrix
   }
   /// Factorises at sigma, into `storage` (values_size() doubles, see Supernodal_ldlt::factorize_in)
   /// or, without it, into its own memory. False on a zero pivot.
@@ -364,43 +364,23 @@ inline Spectral_pairs dense_smallest_eigenpairs(const Eigen::SparseMatrix<double
   return out;
 }
 
-/// Column j of X becomes the former column order[j] (order a permutation), in place: each
-/// cycle of the permutation is followed with one spare column.
-inline void reorder_columns(Eigen::MatrixXd& X, const std::vector<Eigen::Index>& order)
-{
-  const std::size_t n = std::size_t(X.rows());
-  auto column = [&](std::size_t j) { return X.data() + j * n; };
-  std::vector<bool> placed(order.size(), false);
-  std::vector<double> spare;
-  for(std::size_t start = 0; start < order.size(); ++start) {
-    if(placed[start] || std::size_t(order[start]) == start) continue;
-    spare.assign(column(start), column(start) + n);
-    std::size_t j = start;
-    for(;;) {
-      placed[j] = true;
-      const std::size_t from = std::size_t(order[j]);
-      if(from == start) break;
-      std::copy_n(column(from), n, column(j));
-      j = from;
-    }
-    std::copy_n(spare.data(), n, column(j));
-  }
-}
-
 /// The pairs (lambda_j, M^-1/2 y_j) in ascending lambda, from the eigenpairs (lambda_j, y_j) of
 /// the standardised problem. The vectors are reordered and scaled in place: on a large mesh a
 /// copy would be the run's peak memory.
 inline Spectral_pairs ascending_pairs(const Eigen::VectorXd& lambda, Eigen::MatrixXd&& Y,
                                       const Eigen::VectorXd& sqrt_mass)
 {
-  std::vector<Eigen::Index> order(std::size_t(lambda.size()));
-  std::iota(order.begin(), order.end(), Eigen::Index(0));
-  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return lambda[a] < lambda[b]; });
+  // Column j of the result is column order[j] of Y: Y P with P's indices `order`, which Eigen
+  // applies in place (column swaps along the permutation's cycles).
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, Eigen::Index> order(lambda.size());
+  order.setIdentity();
+  std::sort(order.indices().data(), order.indices().data() + lambda.size(),
+            [&](Eigen::Index a, Eigen::Index b) { return lambda[a] < lambda[b]; });
   Spectral_pairs out;
   out.values.resize(lambda.size());
-  for(Eigen::Index j = 0; j < lambda.size(); ++j) out.values[j] = lambda[order[std::size_t(j)]];
+  for(Eigen::Index j = 0; j < lambda.size(); ++j) out.values[j] = lambda[order.indices()[j]];
   out.vectors = std::move(Y);
-  reorder_columns(out.vectors, order);
+  out.vectors = out.vectors * order;
   out.vectors.array().colwise() /= sqrt_mass.array();
   return out;
 }
