@@ -611,6 +611,26 @@ TEST(Spectral, BlockLanczosOnKnownSpectra)
   EXPECT_THROW(lapmesh::internal::block_lanczos_largest(n, 12, apply_full, opt), lapmesh::Numerical_error);
 }
 
+TEST(Spectral, BlockLanczosGoesOnPastAnInvariantSubspace)
+{
+  // Rank 6 and 24 wanted pairs: after two blocks the Krylov space is invariant, and the new blocks
+  // are round-off that must be replaced by fresh directions, not normalised into the basis (which
+  // returned vectors far from orthogonal, with residuals of order one).
+  const Eigen::Index n = 400, nev = 24;
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(n);
+  for(Eigen::Index i = 0; i < 6; ++i) d[7 * i + 3] = 1.0 + double(i);
+  auto apply = [&](const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) { Y = d.asDiagonal() * X; };
+  lapmesh::internal::Block_lanczos_options opt;
+  opt.block_size = 4;
+  const auto r = lapmesh::internal::block_lanczos_largest(n, nev, apply, opt);
+  ASSERT_EQ(r.values.size(), nev);
+  for(Eigen::Index j = 0; j < nev; ++j) {
+    EXPECT_NEAR(r.values[j], j < 6 ? 6.0 - double(j) : 0.0, 1e-12) << j;
+    EXPECT_LT((d.asDiagonal() * r.vectors.col(j) - r.values[j] * r.vectors.col(j)).norm(), 1e-10) << j;
+  }
+  EXPECT_LT((r.vectors.transpose() * r.vectors - Eigen::MatrixXd::Identity(nev, nev)).cwiseAbs().maxCoeff(), 1e-12);
+}
+
 TEST(Spectral, FreeFunctionsNamedParametersAndPolyhedron)
 {
   Mesh m = to_mesh(lapmesh::bumpy_sphere(3));

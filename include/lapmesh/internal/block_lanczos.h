@@ -115,10 +115,13 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
     for(Index i = 0; i < n; ++i) x[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
   };
 
-  // Orthonormalises W (n x b, already orthogonal to V[:, 0:filled]) into Q with W = Q R.
+  // Orthonormalises W (n x b, already orthogonal to V[:, 0:filled]) into Q with W = Q R. `scale`
+  // is the size of W before it was made orthogonal to V: rank is judged against it, because a
+  // block that the projections reduced to round-off (the Krylov space became invariant) is noise
+  // that is not orthogonal to V, and normalising it would corrupt the basis.
   MatrixXd G, R2;
-  auto orthonormalise = [&](MatrixXd& W, MatrixXd& R, Index filled) {
-    const double scale = std::max(W.colwise().norm().maxCoeff(), 1e-300);
+  auto orthonormalise = [&](MatrixXd& W, MatrixXd& R, Index filled, double scale) {
+    scale = std::max(scale, 1e-300);
     panel_product_tn(W, W, G);
     Eigen::LLT<MatrixXd> llt1(G);
     if(llt1.info() == Eigen::Success) {
@@ -176,7 +179,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   {
     MatrixXd W(n, b), R;
     for(Index j = 0; j < b; ++j) random_unit(W.col(j));
-    orthonormalise(W, R, 0);
+    orthonormalise(W, R, 0, W.colwise().norm().maxCoeff());
     V.leftCols(b) = W;
   }
   Index processed = 0, filled = b, restart_start = 0;
@@ -187,6 +190,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       W.resize(n, b);
       apply(V.middleCols(cur, b), W);
       out.operations += b;
+      const double applied_scale = W.colwise().norm().maxCoeff();
       // Three-term recurrence against the last two blocks (the large components), then one pass
       // against the whole basis; T gets the sum of both coefficient sets. The first block after
       // a restart couples to every kept Ritz vector: it gets two full passes instead.
@@ -200,7 +204,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       T.block(0, cur, filled, b) = Cg;
       T.block(cur, 0, b, filled) = Cg.transpose();
       T.block(cur, cur, b, b) = 0.5 * (Cg.middleRows(cur, b) + Cg.middleRows(cur, b).transpose());
-      orthonormalise(W, R, filled);
+      orthonormalise(W, R, filled, applied_scale);
       V.middleCols(filled, b) = W;
       T.block(filled, cur, b, b) = R;
       T.block(cur, filled, b, b) = R.transpose();
