@@ -631,6 +631,31 @@ TEST(Spectral, BlockLanczosGoesOnPastAnInvariantSubspace)
   EXPECT_LT((r.vectors.transpose() * r.vectors - Eigen::MatrixXd::Identity(nev, nev)).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(Spectral, BlockLanczosChecksConvergenceAtCheckpoints)
+{
+  // A slowly decaying spectrum (the top of a shift-inverted Laplacian's) and a small basis: many
+  // steps and several restarts. The projected eigenproblem is solved at the restarts and at the
+  // checkpoints the convergence rate predicts, not at every step, and the result is as accurate.
+  const Eigen::Index n = 2000, nev = 30, b = 4;
+  Eigen::VectorXd d(n);
+  for(Eigen::Index i = 0; i < n; ++i) d[i] = 1.0 / (1.0 + 0.02 * double(i) + 1e-4 * double(i * i));
+  auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) { Y = d.asDiagonal() * X; };
+  lapmesh::internal::Block_lanczos_options opt;
+  opt.block_size = b;
+  opt.max_basis = 80;
+  const auto r = lapmesh::internal::block_lanczos_largest(n, nev, apply, opt);
+  ASSERT_EQ(r.values.size(), nev);
+  for(Eigen::Index j = 0; j < nev; ++j) {
+    EXPECT_NEAR(r.values[j], d[j], 1e-12 * d[j]) << j;
+    EXPECT_LT((d.asDiagonal() * r.vectors.col(j) - r.values[j] * r.vectors.col(j)).norm(), 1e-9 * d[j]) << j;
+  }
+  EXPECT_LT((r.vectors.transpose() * r.vectors - Eigen::MatrixXd::Identity(nev, nev)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GE(r.restarts, 2);
+  const long long steps_with_a_full_block = r.operations / b - nev / b;  // those that could check
+  EXPECT_GE(r.rayleigh_ritz, r.restarts + 1);                           // each restart and the end
+  EXPECT_LT(2 * r.rayleigh_ritz, steps_with_a_full_block);
+}
+
 TEST(Spectral, FreeFunctionsNamedParametersAndPolyhedron)
 {
   Mesh m = to_mesh(lapmesh::bumpy_sphere(3));

@@ -18,6 +18,13 @@
 // coupling to the unprocessed block. When the basis is full, it restarts thickly: the best Ritz
 // vectors plus the unprocessed block form the new basis (no information from converged
 // directions is lost, and T stays exact).
+//
+// Rayleigh-Ritz costs O(m^3) for a basis of m vectors, as much as a block solve on a mesh of tens
+// of thousands of vertices, and most steps cannot end the run. It is done when the basis is full
+// (the restart needs the Ritz vectors), at every step while it is cheap beside the step's
+// re-orthogonalisation, and otherwise at checkpoints: the rate at which the previous checks saw
+// Ritz pairs converge predicts the step that ends the run, and the next check comes halfway
+// there, so the checks close in on the end (every step once it is a step away).
 #ifndef LAPMESH_INTERNAL_BLOCK_LANCZOS_H
 #define LAPMESH_INTERNAL_BLOCK_LANCZOS_H
 
@@ -34,6 +41,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -87,6 +95,7 @@ struct Block_lanczos_result
   Eigen::MatrixXd vectors;   ///< orthonormal eigenvectors, one per column
   long long operations = 0;  ///< operator applications (vectors, not blocks)
   int restarts = 0;
+  int rayleigh_ritz = 0;     ///< projected eigenproblems solved (convergence checks)
 };
 
 /// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X, X a block of
@@ -184,6 +193,9 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   }
   Index processed = 0, filled = b, restart_start = 0;
   MatrixXd W, C, R, Cg, kept, next;
+  // The convergence checks' schedule (see the top of the file), in operator applications.
+  long long next_check = 0, last_check = 0;
+  Index last_settled = -1;
   for(int restart = 0;; ++restart) {
     while(filled <= m_max) {
       const Index cur = processed;
@@ -212,9 +224,15 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       filled += b;
       if(on_step) on_step(out.operations);
       if(processed < nev) continue;
+      // A projected problem whose solution (about 9 p^3 flops) costs less than a tenth of the
+      // step's re-orthogonalisation (4 n p b flops) is solved at every step.
+      const bool basis_full = filled > m_max;
+      const bool cheap_check = 9.0 * double(processed) * double(processed) <= 0.4 * double(n) * double(b);
+      if(!basis_full && !cheap_check && out.operations < next_check) continue;
 
       // Rayleigh-Ritz on the processed columns; residual of the Ritz pair (theta, V z):
       // A V z - theta V z = V_next R_last z_last, so its norm is ||R_last z_last||.
+      ++out.rayleigh_ritz;
       Eigen::SelfAdjointEigenSolver<MatrixXd> es(T.topLeftCorner(processed, processed));
       if(es.info() != Eigen::Success) throw Numerical_error("block Lanczos: the projected eigenproblem failed");
       Eigen::VectorXd theta = es.eigenvalues().reverse();
@@ -232,11 +250,12 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         }
       }
       const MatrixXd R_last = T.block(processed, processed - b, b, b);
+      auto has_converged = [&](Index j) {
+        return (R_last * Z.block(processed - b, j, b, 1)).norm() <=
+               opt.tolerance * std::max(std::abs(theta[j]), 1e-300 + 1e-14 * std::abs(theta[0]));
+      };
       Index converged = 0;
-      while(converged < nev &&
-            (R_last * Z.block(processed - b, converged, b, 1)).norm() <=
-              opt.tolerance * std::max(std::abs(theta[converged]), 1e-300 + 1e-14 * std::abs(theta[0])))
-        ++converged;
+      while(converged < nev && has_converged(converged)) ++converged;
       if(converged >= nev) {
         // The Ritz vectors overwrite the basis, which then shrinks in place: no second tall
         // matrix beside the basis at the peak of the run.
@@ -247,7 +266,20 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         out.restarts = restart;
         return out;
       }
-      if(filled + b > m_max + b) {  // basis full: thick restart
+      // The next check: halfway to the end that the convergence rate since the last check
+      // predicts; at the restart when no progress was seen (the rate is unknown).
+      Index settled = converged;  // wanted pairs converged, in any position
+      for(Index j = converged + 1; j < nev; ++j) settled += has_converged(j) ? 1 : 0;
+      if(last_settled < 0)
+        next_check = out.operations + b;  // the next step measures a rate
+      else if(settled > last_settled)
+        next_check = out.operations + (long long)(0.5 * double(nev - settled) * double(out.operations - last_check) /
+                                                  double(settled - last_settled));
+      else
+        next_check = std::numeric_limits<long long>::max();
+      last_settled = settled;
+      last_check = out.operations;
+      if(basis_full) {  // thick restart
         if(restart >= opt.max_restarts)
           throw Numerical_error("block Lanczos: " + std::to_string(converged) + " of " + std::to_string(nev) +
                                 " eigenpairs converged after " + std::to_string(restart) +
