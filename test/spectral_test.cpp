@@ -286,12 +286,14 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
       if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         const lapmesh::internal::Supernodal_factor_view view = llt.factor_view();
-        const Eigen::MatrixXd B = Eigen::MatrixXd::Random(4, K.rows());  // 4 values per row, side by side
-        Eigen::MatrixXd baseline = B, avx2 = B;
-        lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), 4);
-        lapmesh::internal::supernodal_kernels::solve_avx2(view, avx2.data(), 4);
-        EXPECT_LT((baseline - avx2).cwiseAbs().maxCoeff(), 1e-12 * baseline.cwiseAbs().maxCoeff());
-        EXPECT_GT(baseline.cwiseAbs().maxCoeff(), 0.0);
+        for(int width : {2, 4, 5, 6, 8}) {  // one pass, and passes over part of each row
+          const Eigen::MatrixXd B = Eigen::MatrixXd::Random(width, K.rows());  // a row's values side by side
+          Eigen::MatrixXd baseline = B, avx2 = B;
+          lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), std::size_t(width));
+          lapmesh::internal::supernodal_kernels::solve_avx2(view, avx2.data(), std::size_t(width));
+          EXPECT_LT((baseline - avx2).cwiseAbs().maxCoeff(), 1e-12 * baseline.cwiseAbs().maxCoeff()) << width;
+          EXPECT_GT(baseline.cwiseAbs().maxCoeff(), 0.0);
+        }
       }
 #endif
     }

@@ -181,13 +181,17 @@ public:
     const int* perm = permutation();
     // The kernels take the values of a row side by side, CHOLMOD a column-major block.
     const bool by_rows = supernodal_kernels_fit(std::size_t(nrhs));
-    const Eigen::Index row_step = by_rows ? nrhs : 1, column_step = by_rows ? 1 : n;
-    m_rhs.resize(std::size_t(n) * std::size_t(nrhs));
-    for(Eigen::Index i = 0; i < n; ++i)
+    // A row may hold zero columns after the block's (supernodal_row_width()).
+    const Eigen::Index row_step = by_rows ? Eigen::Index(supernodal_row_width(std::size_t(nrhs))) : 1,
+                       column_step = by_rows ? 1 : n;
+    m_rhs.resize(std::size_t(n) * std::size_t(by_rows ? row_step : nrhs));
+    for(Eigen::Index i = 0; i < n; ++i) {
       for(Eigen::Index j = 0; j < nrhs; ++j)
         m_rhs[std::size_t(i * row_step + j * column_step)] = scale[perm[i]] * X(perm[i], j);
+      for(Eigen::Index j = nrhs; by_rows && j < row_step; ++j) m_rhs[std::size_t(i * row_step + j)] = 0.0;
+    }
     if(by_rows) {
-      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(nrhs));
+      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
     } else {
       m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), nrhs);
       cholmod_dense rhs = dense_view(m_rhs.data(), n, nrhs), work = dense_view(m_work.data(), m_work.rows(), nrhs);

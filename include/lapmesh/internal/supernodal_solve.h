@@ -15,6 +15,15 @@
 
 #include <cassert>
 #include <cstddef>
+#include <cstring>
+#include <type_traits>
+
+// The baseline build of the kernels passes 32-byte vectors between inlined helpers, for which
+// GCC notes that the ABI differs with AVX: nothing crosses a call boundary.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define LAPMESH_SUPERNODAL_SOLVE_AVX2 1
@@ -42,12 +51,62 @@ struct Supernodal_factor_view
 
 namespace supernodal_kernels {
 
-// X holds W right-hand sides row by row. W is a compile-time constant: the compiler keeps a row
-// in vector registers.
+// W values of one row of X (W = 1, 2 or 4) as one GCC vector, whose loads and stores need only
+// the alignment of a double: the arithmetic is vector code whatever the optimisation level.
+// Left to the compiler, the short loops over a row were vectorised or not depending on it (at
+// -O2 the updates stayed scalar, since a row may alias the row it is updated from; -O3
+// unrolled them first and paired the scalars less well), and a 64-byte vector or a struct of
+// rows went through the stack. A block of other widths is solved in passes of 4, 2 and 1
+// columns over the same rows.
 template <int W>
+struct Row_type;
+template <>
+struct Row_type<1>
+{
+  using type = double;
+};
+#if defined(__GNUC__) || defined(__clang__)
+typedef double Row2 __attribute__((vector_size(2 * sizeof(double)), aligned(sizeof(double))));
+typedef double Row4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+template <>
+struct Row_type<2>
+{
+  using type = Row2;
+};
+template <>
+struct Row_type<4>
+{
+  using type = Row4;
+};
+#define LAPMESH_SUPERNODAL_ROW_VECTORS 1
+#endif
+
+template <int W>
+LAPMESH_ALWAYS_INLINE typename Row_type<W>::type load_row(const double* p)
+{
+  typename Row_type<W>::type r;
+  std::memcpy(&r, p, sizeof r);
+  return r;
+}
+template <int W>
+LAPMESH_ALWAYS_INLINE void store_row(double* p, const typename Row_type<W>::type& r)
+{
+  std::memcpy(p, &r, sizeof r);
+}
+template <int W>
+LAPMESH_ALWAYS_INLINE typename Row_type<W>::type zero_row()
+{
+  typename Row_type<W>::type r;
+  std::memset(&r, 0, sizeof r);
+  return r;
+}
+
+// W of the right-hand sides of X, which holds Stride of them row by row (the W start at X).
+template <int W, int Stride>
 LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
 {
-  constexpr std::size_t stride = W;
+  using R = typename Row_type<W>::type;
+  constexpr std::size_t stride = Stride;
   for(std::size_t s = 0; s < L.nsuper; ++s) {
     const int k1 = L.super[s], ncol = L.super[s + 1] - k1, nrow = L.pi[s + 1] - L.pi[s];
     const int* rows = L.rows + L.pi[s];
@@ -56,42 +115,41 @@ LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
     for(int j = 0; j < ncol; ++j) {  // the dense triangle of the supernode
       const double* col = Ls + std::size_t(j) * std::size_t(nrow);
       double* xj = Xs + std::size_t(j) * stride;
-      const double inv = 1.0 / col[j];
-      for(int c = 0; c < W; ++c) xj[c] *= inv;
+      const R vj = (1.0 / col[j]) * load_row<W>(xj);
+      store_row<W>(xj, vj);
       for(int i = j + 1; i < ncol; ++i) {
         double* xi = Xs + std::size_t(i) * stride;
-        const double l = col[i];
-        for(int c = 0; c < W; ++c) xi[c] -= l * xj[c];
+        store_row<W>(xi, load_row<W>(xi) - col[i] * vj);
       }
     }
     int j = 0;
     for(; j + 4 <= ncol; j += 4) {  // the rows below it, four columns at a time
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
       const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
-      const double* v0 = Xs + std::size_t(j) * stride;
-      const double *v1 = v0 + stride, *v2 = v1 + stride, *v3 = v2 + stride;
+      const double* xj = Xs + std::size_t(j) * stride;
+      const R v0 = load_row<W>(xj), v1 = load_row<W>(xj + stride), v2 = load_row<W>(xj + 2 * stride),
+              v3 = load_row<W>(xj + 3 * stride);
       for(int i = ncol; i < nrow; ++i) {
         double* xi = X + std::size_t(rows[i]) * stride;
-        const double l0 = c0[i], l1 = c1[i], l2 = c2[i], l3 = c3[i];
-        for(int c = 0; c < W; ++c) xi[c] -= (l0 * v0[c] + l1 * v1[c]) + (l2 * v2[c] + l3 * v3[c]);
+        store_row<W>(xi, load_row<W>(xi) - ((c0[i] * v0 + c1[i] * v1) + (c2[i] * v2 + c3[i] * v3)));
       }
     }
     for(; j < ncol; ++j) {
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      const double* v0 = Xs + std::size_t(j) * stride;
+      const R v0 = load_row<W>(Xs + std::size_t(j) * stride);
       for(int i = ncol; i < nrow; ++i) {
         double* xi = X + std::size_t(rows[i]) * stride;
-        const double l0 = c0[i];
-        for(int c = 0; c < W; ++c) xi[c] -= l0 * v0[c];
+        store_row<W>(xi, load_row<W>(xi) - c0[i] * v0);
       }
     }
   }
 }
 
-template <int W>
+template <int W, int Stride>
 LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
 {
-  constexpr std::size_t stride = W;
+  using R = typename Row_type<W>::type;
+  constexpr std::size_t stride = Stride;
   for(std::size_t s = L.nsuper; s-- > 0;) {
     const int k1 = L.super[s], ncol = L.super[s + 1] - k1, nrow = L.pi[s + 1] - L.pi[s];
     const int* rows = L.rows + L.pi[s];
@@ -101,80 +159,95 @@ LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
     for(; j + 4 <= ncol; j += 4) {  // the rows below the triangle, four columns at a time
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
       const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
-      double a0[W] = {}, a1[W] = {}, a2[W] = {}, a3[W] = {};
+      R a0 = zero_row<W>(), a1 = a0, a2 = a0, a3 = a0;
       for(int i = ncol; i < nrow; ++i) {
-        const double* xi = X + std::size_t(rows[i]) * stride;
-        const double l0 = c0[i], l1 = c1[i], l2 = c2[i], l3 = c3[i];
-        for(int c = 0; c < W; ++c) {
-          a0[c] += l0 * xi[c];
-          a1[c] += l1 * xi[c];
-          a2[c] += l2 * xi[c];
-          a3[c] += l3 * xi[c];
-        }
+        const R xi = load_row<W>(X + std::size_t(rows[i]) * stride);
+        a0 = a0 + c0[i] * xi;
+        a1 = a1 + c1[i] * xi;
+        a2 = a2 + c2[i] * xi;
+        a3 = a3 + c3[i] * xi;
       }
       double* v0 = Xs + std::size_t(j) * stride;
-      double *v1 = v0 + stride, *v2 = v1 + stride, *v3 = v2 + stride;
-      for(int c = 0; c < W; ++c) {
-        v0[c] -= a0[c];
-        v1[c] -= a1[c];
-        v2[c] -= a2[c];
-        v3[c] -= a3[c];
-      }
+      store_row<W>(v0, load_row<W>(v0) - a0);
+      store_row<W>(v0 + stride, load_row<W>(v0 + stride) - a1);
+      store_row<W>(v0 + 2 * stride, load_row<W>(v0 + 2 * stride) - a2);
+      store_row<W>(v0 + 3 * stride, load_row<W>(v0 + 3 * stride) - a3);
     }
     for(; j < ncol; ++j) {  // two partial sums: the additions of one sum form a dependency chain
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      double a0[W] = {}, a1[W] = {};
+      R a0 = zero_row<W>(), a1 = a0;
       int i = ncol;
       for(; i + 1 < nrow; i += 2) {
-        const double* x0 = X + std::size_t(rows[i]) * stride;
-        const double* x1 = X + std::size_t(rows[i + 1]) * stride;
-        const double l0 = c0[i], l1 = c0[i + 1];
-        for(int c = 0; c < W; ++c) {
-          a0[c] += l0 * x0[c];
-          a1[c] += l1 * x1[c];
-        }
+        a0 = a0 + c0[i] * load_row<W>(X + std::size_t(rows[i]) * stride);
+        a1 = a1 + c0[i + 1] * load_row<W>(X + std::size_t(rows[i + 1]) * stride);
       }
-      if(i < nrow) {
-        const double* x0 = X + std::size_t(rows[i]) * stride;
-        for(int c = 0; c < W; ++c) a0[c] += c0[i] * x0[c];
-      }
+      if(i < nrow) a0 = a0 + c0[i] * load_row<W>(X + std::size_t(rows[i]) * stride);
       double* v0 = Xs + std::size_t(j) * stride;
-      for(int c = 0; c < W; ++c) v0[c] -= a0[c] + a1[c];
+      store_row<W>(v0, load_row<W>(v0) - (a0 + a1));
     }
     for(int jj = ncol; jj-- > 0;) {  // the dense triangle, backwards
       const double* col = Ls + std::size_t(jj) * std::size_t(nrow);
       double* xj = Xs + std::size_t(jj) * stride;
-      for(int i = jj + 1; i < ncol; ++i) {
-        const double* xi = Xs + std::size_t(i) * stride;
-        const double l = col[i];
-        for(int c = 0; c < W; ++c) xj[c] -= l * xi[c];
-      }
-      const double inv = 1.0 / col[jj];
-      for(int c = 0; c < W; ++c) xj[c] *= inv;
+      R acc = load_row<W>(xj);
+      for(int i = jj + 1; i < ncol; ++i) acc = acc - col[i] * load_row<W>(Xs + std::size_t(i) * stride);
+      store_row<W>(xj, (1.0 / col[jj]) * acc);
     }
   }
 }
 
-template <int W>
-LAPMESH_ALWAYS_INLINE void solve_width(const Supernodal_factor_view& L, double* X)
+template <int W, int Stride>
+LAPMESH_ALWAYS_INLINE void solve_pass(const Supernodal_factor_view& L, double* X)
 {
-  forward<W>(L, X);
-  backward<W>(L, X);
+  forward<W, Stride>(L, X);
+  backward<W, Stride>(L, X);
 }
 
-// One pass over the factor for the block (its width checked by supernodal_kernels_fit()).
+// The block (its width checked by supernodal_kernels_fit()) in passes of 4, 2 and 1 columns
+// (without GCC vectors, one column per pass).
 LAPMESH_ALWAYS_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
+#ifndef LAPMESH_SUPERNODAL_ROW_VECTORS
+  auto by_columns = [&](auto stride) {
+    for(int c = 0; c < decltype(stride)::value; ++c) solve_pass<1, decltype(stride)::value>(L, X + c);
+  };
   switch(width) {
-    case 2: solve_width<2>(L, X); return;
-    case 3: solve_width<3>(L, X); return;
-    case 4: solve_width<4>(L, X); return;
-    case 5: solve_width<5>(L, X); return;
-    case 6: solve_width<6>(L, X); return;
-    case 7: solve_width<7>(L, X); return;
-    case 8: solve_width<8>(L, X); return;
+    case 2: by_columns(std::integral_constant<int, 2>()); return;
+    case 3: by_columns(std::integral_constant<int, 3>()); return;
+    case 4: by_columns(std::integral_constant<int, 4>()); return;
+    case 5: by_columns(std::integral_constant<int, 5>()); return;
+    case 6: by_columns(std::integral_constant<int, 6>()); return;
+    case 7: by_columns(std::integral_constant<int, 7>()); return;
+    case 8: by_columns(std::integral_constant<int, 8>()); return;
     default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
   }
+#else
+  switch(width) {
+    case 2: solve_pass<2, 2>(L, X); return;
+    case 3:
+      solve_pass<2, 3>(L, X);
+      solve_pass<1, 3>(L, X + 2);
+      return;
+    case 4: solve_pass<4, 4>(L, X); return;
+    case 5:
+      solve_pass<4, 5>(L, X);
+      solve_pass<1, 5>(L, X + 4);
+      return;
+    case 6:
+      solve_pass<4, 6>(L, X);
+      solve_pass<2, 6>(L, X + 4);
+      return;
+    case 7:
+      solve_pass<4, 7>(L, X);
+      solve_pass<2, 7>(L, X + 4);
+      solve_pass<1, 7>(L, X + 6);
+      return;
+    case 8:
+      solve_pass<4, 8>(L, X);
+      solve_pass<4, 8>(L, X + 4);
+      return;
+    default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
+  }
+#endif
 }
 
 inline void solve_baseline(const Supernodal_factor_view& L, double* X, std::size_t width) { solve_all(L, X, width); }
@@ -195,6 +268,11 @@ __attribute__((target("avx2,fma"))) inline void solve_avx2(const Supernodal_fact
 /// for their overhead.
 inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && width <= 8; }
 
+/// How many values a row of the kernels' block holds for `width` right-hand sides
+/// (supernodal_kernels_fit(width)): 3 and 7 are solved as 4 and 8 with zero columns, which is
+/// faster than their passes of 2 + 1 and 4 + 2 + 1 columns.
+inline std::size_t supernodal_row_width(std::size_t width) { return width == 3 || width == 7 ? width + 1 : width; }
+
 /// Solves L L^T X = B in place: X holds B's `width` columns (supernodal_kernels_fit(width)) row
 /// by row (row i of B at X + i * width), in the factor's (permuted) numbering.
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
@@ -213,5 +291,9 @@ inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X
 } // namespace lapmesh
 
 #undef LAPMESH_ALWAYS_INLINE
+#undef LAPMESH_SUPERNODAL_ROW_VECTORS
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 #endif
