@@ -16,7 +16,6 @@
 #include <cassert>
 #include <cstddef>
 #include <cstring>
-#include <type_traits>
 
 // The baseline build of the kernels passes 32-byte vectors between inlined helpers, for which
 // GCC notes that the ABI differs with AVX: nothing crosses a call boundary.
@@ -57,7 +56,7 @@ namespace supernodal_kernels {
 // -O2 the updates stayed scalar, since a row may alias the row it is updated from; -O3
 // unrolled them first and paired the scalars less well), and a 64-byte vector or a struct of
 // rows went through the stack. A block of other widths is solved in passes of 4, 2 and 1
-// columns over the same rows.
+// columns over the same rows (solve_passes).
 template <int W>
 struct Row_type;
 template <>
@@ -202,52 +201,37 @@ LAPMESH_ALWAYS_INLINE void solve_pass(const Supernodal_factor_view& L, double* X
   backward<W, Stride>(L, X);
 }
 
-// The block (its width checked by supernodal_kernels_fit()) in passes of 4, 2 and 1 columns
-// (without GCC vectors, one column per pass).
+#ifdef LAPMESH_SUPERNODAL_ROW_VECTORS
+constexpr int widest_pass = 4;
+#else
+constexpr int widest_pass = 1;  // plain doubles: one column per pass
+#endif
+
+// Columns [Offset, Stride) of a block of Stride columns, in passes of 4, 2 and 1 columns.
+template <int Stride, int Offset = 0>
+LAPMESH_ALWAYS_INLINE void solve_passes(const Supernodal_factor_view& L, double* X)
+{
+  if constexpr(Offset < Stride) {
+    constexpr int left = Stride - Offset;
+    constexpr int lanes = left >= 4 && widest_pass >= 4 ? 4 : left >= 2 && widest_pass >= 2 ? 2 : 1;
+    solve_pass<lanes, Stride>(L, X + Offset);
+    solve_passes<Stride, Offset + lanes>(L, X);
+  }
+}
+
+// The block, its width checked by supernodal_kernels_fit().
 LAPMESH_ALWAYS_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
-#ifndef LAPMESH_SUPERNODAL_ROW_VECTORS
-  auto by_columns = [&](auto stride) {
-    for(int c = 0; c < decltype(stride)::value; ++c) solve_pass<1, decltype(stride)::value>(L, X + c);
-  };
   switch(width) {
-    case 2: by_columns(std::integral_constant<int, 2>()); return;
-    case 3: by_columns(std::integral_constant<int, 3>()); return;
-    case 4: by_columns(std::integral_constant<int, 4>()); return;
-    case 5: by_columns(std::integral_constant<int, 5>()); return;
-    case 6: by_columns(std::integral_constant<int, 6>()); return;
-    case 7: by_columns(std::integral_constant<int, 7>()); return;
-    case 8: by_columns(std::integral_constant<int, 8>()); return;
+    case 2: solve_passes<2>(L, X); return;
+    case 3: solve_passes<3>(L, X); return;
+    case 4: solve_passes<4>(L, X); return;
+    case 5: solve_passes<5>(L, X); return;
+    case 6: solve_passes<6>(L, X); return;
+    case 7: solve_passes<7>(L, X); return;
+    case 8: solve_passes<8>(L, X); return;
     default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
   }
-#else
-  switch(width) {
-    case 2: solve_pass<2, 2>(L, X); return;
-    case 3:
-      solve_pass<2, 3>(L, X);
-      solve_pass<1, 3>(L, X + 2);
-      return;
-    case 4: solve_pass<4, 4>(L, X); return;
-    case 5:
-      solve_pass<4, 5>(L, X);
-      solve_pass<1, 5>(L, X + 4);
-      return;
-    case 6:
-      solve_pass<4, 6>(L, X);
-      solve_pass<2, 6>(L, X + 4);
-      return;
-    case 7:
-      solve_pass<4, 7>(L, X);
-      solve_pass<2, 7>(L, X + 4);
-      solve_pass<1, 7>(L, X + 6);
-      return;
-    case 8:
-      solve_pass<4, 8>(L, X);
-      solve_pass<4, 8>(L, X + 4);
-      return;
-    default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
-  }
-#endif
 }
 
 inline void solve_baseline(const Supernodal_factor_view& L, double* X, std::size_t width) { solve_all(L, X, width); }
