@@ -286,7 +286,7 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
       if(__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         const lapmesh::internal::Supernodal_factor_view view = llt.factor_view();
-        for(int width : {2, 4, 5, 6, 8}) {  // one pass, and passes over part of each row
+        for(int width : {2, 4, 5, 6, 8}) {  // every row width: one pass, and passes over part of each row
           const Eigen::MatrixXd B = Eigen::MatrixXd::Random(width, K.rows());  // a row's values side by side
           Eigen::MatrixXd baseline = B, avx2 = B;
           lapmesh::internal::supernodal_kernels::solve_baseline(view, baseline.data(), std::size_t(width));

@@ -52,11 +52,11 @@ namespace supernodal_kernels {
 
 // W values of one row of X (W = 1, 2 or 4) as one GCC vector, whose loads and stores need only
 // the alignment of a double: the arithmetic is vector code whatever the optimisation level.
-// Left to the compiler, the short loops over a row were vectorised or not depending on it (at
-// -O2 the updates stayed scalar, since a row may alias the row it is updated from; -O3
-// unrolled them first and paired the scalars less well), and a 64-byte vector or a struct of
-// rows went through the stack. A block of other widths is solved in passes of 4, 2 and 1
-// columns over the same rows (solve_passes).
+// Left to the compiler, the short loops over a row were vectorised well or badly depending on
+// the level and on small changes to the source (at -O2 the updates stayed scalar, since a row
+// may alias the row it is updated from). An 8-wide row, as a 64-byte vector or as a struct of
+// two 4-wide ones (which went through the stack), was 2-3 times slower than two passes of 4.
+// Wider blocks are solved in passes of 4, 2 and 1 columns over the same rows (solve_passes).
 template <int W>
 struct Row_type;
 template <>
@@ -219,18 +219,16 @@ LAPMESH_ALWAYS_INLINE void solve_passes(const Supernodal_factor_view& L, double*
   }
 }
 
-// The block, its width checked by supernodal_kernels_fit().
+// The block, `width` a supernodal_row_width().
 LAPMESH_ALWAYS_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
   switch(width) {
     case 2: solve_passes<2>(L, X); return;
-    case 3: solve_passes<3>(L, X); return;
     case 4: solve_passes<4>(L, X); return;
     case 5: solve_passes<5>(L, X); return;
     case 6: solve_passes<6>(L, X); return;
-    case 7: solve_passes<7>(L, X); return;
     case 8: solve_passes<8>(L, X); return;
-    default: assert(false && "supernodal kernels: width outside supernodal_kernels_fit()"); return;
+    default: assert(false && "supernodal kernels: width is not a supernodal_row_width()"); return;
   }
 }
 
@@ -257,8 +255,9 @@ inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && wid
 /// faster than their passes of 2 + 1 and 4 + 2 + 1 columns.
 inline std::size_t supernodal_row_width(std::size_t width) { return width == 3 || width == 7 ? width + 1 : width; }
 
-/// Solves L L^T X = B in place: X holds B's `width` columns (supernodal_kernels_fit(width)) row
-/// by row (row i of B at X + i * width), in the factor's (permuted) numbering.
+/// Solves L L^T X = B in place: X holds `width` columns row by row (row i at X + i * width), in
+/// the factor's (permuted) numbering; `width` is the supernodal_row_width() of B's columns
+/// (supernodal_kernels_fit()), the columns past B's being zero.
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
