@@ -11,6 +11,11 @@
 
 #include <Eigen/Dense>
 
+#include <array>
+#include <map>
+#include <numeric>
+#include <random>
+
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/task_arena.h>
 #endif
@@ -490,6 +495,93 @@ TEST(Operators, SurfaceMeshIsReadAsAnyFaceGraph)
   EXPECT_NE(expected.find("is not a triangle"), std::string::npos) << expected;
   for(bool parallel : {false, true})
     EXPECT_EQ(message([&] { extract_arrays(quad, CGAL::parameters::default_values(), parallel); }), expected);
+}
+
+namespace {
+
+/// Two cones on an n-gon: the apexes have n corners, the equator vertices 4.
+std::pair<int, std::vector<int>> bipyramid(int n)
+{
+  std::vector<int> tri;
+  for(int k = 0; k < n; ++k) tri.insert(tri.end(), {k, (k + 1) % n, n, (k + 1) % n, k, n + 1});
+  return {n + 2, tri};
+}
+
+/// The faces of `b` appended to those of `a`, b's vertices renumbered after a's, and b's vertex
+/// `glued` replaced by a's vertex `onto` (one vertex shared, every edge manifold).
+std::pair<int, std::vector<int>> glued_at_a_vertex(const std::pair<int, std::vector<int>>& a,
+                                                   const std::pair<int, std::vector<int>>& b, int glued, int onto)
+{
+  auto out = a;
+  for(int v : b.second) out.second.push_back(v == glued ? onto : a.first + v - (v > glued));
+  out.first += b.first - 1;
+  return out;
+}
+
+/// The vertices of a triangle list renumbered by a fixed random permutation, so that a vertex's
+/// neighbours come in no particular order.
+std::pair<int, std::vector<int>> shuffled(std::pair<int, std::vector<int>> mesh, unsigned seed)
+{
+  std::vector<int> label(std::size_t(mesh.first));
+  std::iota(label.begin(), label.end(), 0);
+  std::shuffle(label.begin(), label.end(), std::mt19937(seed));
+  for(int& v : mesh.second) v = label[std::size_t(v)];
+  return mesh;
+}
+
+} // namespace
+
+// The pattern rows against a reference built from a map of halfedges: for the slot (i, j), the
+// corner opposite i->j and the corner opposite j->i. The meshes cover interior vertices of up to
+// 8 corners, of 9 to 16 and of more (an apex of 7, 8, 9, 16, 17 and 24 corners; two apexes glued
+// into one), boundary vertices, and shuffled vertex numbers.
+TEST(Operators, PatternRowsEqualAHalfedgeMapReference)
+{
+  std::vector<std::pair<std::string, std::pair<int, std::vector<int>>>> cases = {
+    {"icosphere", shuffled(flat(lapmesh::icosphere(2)), 1)},
+    {"plane patch", shuffled(flat(lapmesh::plane_patch(7, 0.3)), 2)},
+    {"torus", flat(lapmesh::torus(9, 7))},
+    {"two bipyramids glued at an apex (10 corners there)", glued_at_a_vertex(bipyramid(5), bipyramid(5), 5, 5)},
+    {"two bipyramids glued at an apex (18 corners there)", shuffled(glued_at_a_vertex(bipyramid(9), bipyramid(9), 9, 9), 3)}};
+  for(int n : {7, 8, 9, 16, 17, 24}) cases.push_back({"bipyramid " + std::to_string(n), shuffled(bipyramid(n), unsigned(n))});
+  for(const auto& [what, mesh] : cases) {
+    const auto& [n, tri] = mesh;
+    std::map<std::pair<int, int>, std::array<int, 2>> slots;
+    for(int c = 0; c < int(tri.size()); ++c) {
+      const int f = c / 3, from = tri[std::size_t(c)], to = tri[std::size_t(3 * f + (c + 1) % 3)];
+      const int opposite = 3 * f + (c + 2) % 3;
+      slots.try_emplace({from, to}, std::array<int, 2>{-1, -1}).first->second[0] = opposite;
+      slots.try_emplace({to, from}, std::array<int, 2>{-1, -1}).first->second[1] = opposite;
+    }
+    for(int i = 0; i < n; ++i) slots[{i, i}] = {-1, -1};
+    std::vector<int> outer{0}, inner, diagonal(static_cast<std::size_t>(n), -1);
+    std::vector<std::array<int, 2>> slot_corners;
+    std::vector<char> on_boundary(std::size_t(n), 0);
+    int edges = 0, boundary_edges = 0;
+    for(const auto& [ij, corners] : slots) {  // ordered by row, then column
+      const auto [i, j] = ij;
+      if(i == j) diagonal[std::size_t(i)] = int(inner.size());
+      inner.push_back(j);
+      slot_corners.push_back(corners);
+      if(int(outer.size()) == i + 1) outer.push_back(0);
+      outer[std::size_t(i) + 1] = int(inner.size());
+      if(i == j) continue;
+      const bool boundary = corners[0] < 0 || corners[1] < 0;
+      if(boundary) on_boundary[std::size_t(i)] = 1;
+      edges += i < j;
+      boundary_edges += i < j && boundary;
+    }
+    const auto t = lapmesh::internal::build_topology(n, tri);
+    EXPECT_TRUE(t.manifold) << what;
+    EXPECT_EQ(std::vector<int>(t.outer.begin(), t.outer.end()), outer) << what;
+    EXPECT_EQ(std::vector<int>(t.inner.begin(), t.inner.end()), inner) << what;
+    EXPECT_EQ(std::vector<int>(t.diagonal_slot.begin(), t.diagonal_slot.end()), diagonal) << what;
+    EXPECT_TRUE(std::equal(t.slot_corners.begin(), t.slot_corners.end(), slot_corners.begin(), slot_corners.end()))
+      << what;
+    EXPECT_EQ(t.on_boundary, on_boundary) << what;
+    EXPECT_EQ(t.num_edges, edges) << what;
+    EXPECT_EQ(t.num_boundary_edges, boundary_edges) << what;
+  }
 }
 
 TEST(Operators, CornerTopologyEqualsTheFullOne)

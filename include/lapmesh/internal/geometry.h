@@ -8,6 +8,7 @@
 #define LAPMESH_INTERNAL_GEOMETRY_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/parameters.h>
@@ -92,11 +93,17 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   g.corner_area.resize(3 * std::size_t(m));
   if(request.want_angles) g.angle.resize(3 * std::size_t(m));
   if(request.want_face_normals) g.face_normal.resize(3 * std::size_t(m));
+  for(const Eigen::VectorXd* array : {&g.cot, &g.corner_area, &g.angle, &g.face_normal})
+    advise_huge_pages(array->data(), sizeof(double) * std::size_t(array->size()));
+  // How many faces ahead the positions of a face's corners are prefetched.
+  constexpr Index prefetch_distance = 16;
 
   First_index<Index> first_degenerate;
   const Index* tri = t.triangles.data();
 
   for_each_index(m, parallel, [&](Index f) {
+    if(f + prefetch_distance < m)
+      for(Index a = 0; a < 3; ++a) prefetch(&P(tri[3 * (f + prefetch_distance) + a], 0));
     const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]),
                           p2 = P.row(tri[3 * f + 2]);
     // e[a] is the edge opposite corner a.
@@ -148,6 +155,7 @@ inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Eigen::V
                                           bool parallel)
 {
   Eigen::VectorXd out(t.num_vertices);
+  advise_huge_pages(out.data(), sizeof(double) * std::size_t(out.size()));
   for_each_index(t.num_vertices, parallel, [&](Index v) {
     double s = 0;
     for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) s += per_corner[t.vertex_corners[k]];
@@ -239,6 +247,8 @@ void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
   const Index n = t.num_vertices, nnz = t.num_nonzeros();
   S.resize(n, n);
   S.resizeNonZeros(nnz);
+  advise_huge_pages(S.valuePtr(), sizeof(double) * std::size_t(nnz));
+  advise_huge_pages(S.innerIndexPtr(), sizeof(Index) * std::size_t(nnz));
   Index* outer = S.outerIndexPtr();
   Index* inner = S.innerIndexPtr();
   outer[0] = 0;

@@ -16,6 +16,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 
@@ -188,6 +189,7 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   const Index n = static_cast<Index>(tm.number_of_vertices()), m = static_cast<Index>(tm.number_of_faces());
   Extracted_arrays<SurfaceMesh> out;
   out.positions.resize(n, 3);
+  advise_huge_pages(out.positions.data(), sizeof(double) * std::size_t(out.positions.size()));
   out.vertices.resize(std::size_t(n));
   out.vertex_rows.resize(std::size_t(n));
   First_index<Index> non_finite;
@@ -203,6 +205,8 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   if(!non_finite.empty())
     throw Mesh_error("vertex " + std::to_string(non_finite.get()) + " has a non-finite coordinate",
                      Mesh_error::Element::vertex, non_finite.get());
+  out.triangles.reserve(3 * std::size_t(m));
+  advise_huge_pages(out.triangles.data(), sizeof(Index) * out.triangles.capacity());
   out.triangles.resize(3 * std::size_t(m));
   First_index<Index> not_triangle;
   for_each_index(m, parallel, [&](Index f) {

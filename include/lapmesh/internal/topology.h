@@ -13,6 +13,7 @@
 #define LAPMESH_INTERNAL_TOPOLOGY_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 
 #include <algorithm>
@@ -23,6 +24,7 @@
 #include <utility>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -32,22 +34,28 @@ namespace internal {
 /// Index type of vertices, corners and matrix slots; Eigen's default StorageIndex.
 using Index = int;
 
-/// std::allocator whose resize() leaves integers unset instead of zeroing them. The large
-/// arrays of a topology are written in full right after they are sized, in parallel under
-/// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page
-/// faults of every fresh page on one thread.
+/// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose large
+/// blocks are advised huge pages (memory.h). The large arrays of a topology are written in full
+/// right after they are sized, in parallel under CGAL::Parallel_tag: zeroing them first would
+/// be a serial pass that also takes the page faults of every fresh page on one thread.
 template <typename T>
-struct Default_init_allocator : std::allocator<T>
+struct Large_array_allocator : std::allocator<T>
 {
   template <typename U>
   struct rebind
   {
-    using other = Default_init_allocator<U>;
+    using other = Large_array_allocator<U>;
   };
-  Default_init_allocator() = default;
+  Large_array_allocator() = default;
   template <typename U>
-  Default_init_allocator(const Default_init_allocator<U>&) noexcept
+  Large_array_allocator(const Large_array_allocator<U>&) noexcept
   {}
+  T* allocate(std::size_t count)
+  {
+    T* p = std::allocator<T>::allocate(count);
+    advise_huge_pages(p, count * sizeof(T));
+    return p;
+  }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
   {
@@ -62,7 +70,7 @@ struct Default_init_allocator : std::allocator<T>
 
 /// An array of a topology: a std::vector that resize() does not zero.
 template <typename T>
-using Topology_array = std::vector<T, Default_init_allocator<T>>;
+using Topology_array = std::vector<T, Large_array_allocator<T>>;
 
 inline Index next_corner(Index c) { return c % 3 == 2 ? c - 2 : c + 1; }
 inline Index prev_corner(Index c) { return c % 3 == 0 ? c + 2 : c - 1; }
@@ -270,11 +278,72 @@ struct Pattern_rows
   }
 };
 
+/// Appends the row of vertex i to `rows` when i is an interior vertex whose edges are all
+/// manifold (each neighbour is reached once by an outgoing and once by an incoming halfedge of
+/// its d <= Width corners) and returns true; otherwise returns false with `rows` unchanged.
+/// The same row as the general path of build_pattern_rows(), without its sort: each
+/// neighbour's place is the number of smaller ones, counted over a fixed width with no branch.
+template <int Width>
+bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index i, Pattern_rows& rows,
+                          Index& diagonal_slot)
+{
+  static_assert(Width <= 32, "a corner set is a 32-bit mask");
+  constexpr Index none = std::numeric_limits<Index>::max();  // above every vertex: counts as no smaller one
+  Index out_vertex[Width], in_vertex[Width], out_corner[Width], in_corner[Width];
+  for(int a = 0; a < Width; ++a) {
+    const bool real = a < d;
+    const Index c = real ? corners[a] : 0;
+    // Corner c at i: the halfedge i->q is opposite the corner at r (prev), r->i opposite q (next).
+    out_corner[a] = prev_corner(c);
+    in_corner[a] = next_corner(c);
+    out_vertex[a] = real ? tri[in_corner[a]] : none;
+    in_vertex[a] = real ? tri[out_corner[a]] : none;
+  }
+  Index neighbour[Width], side0[Width], side1[Width];
+  std::uint32_t placed = 0, matched = 0;
+  for(int a = 0; a < d; ++a) {
+    Index rank = 0;
+    for(int b = 0; b < Width; ++b) rank += out_vertex[b] < out_vertex[a];
+    placed |= std::uint32_t(1) << rank;
+    neighbour[rank] = out_vertex[a];
+    side0[rank] = out_corner[a];
+  }
+  const std::uint32_t all = d == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << d) - 1;
+  if(placed != all) return false;  // two outgoing halfedges to one neighbour
+  for(int a = 0; a < d; ++a) {
+    Index rank = 0;
+    for(int b = 0; b < Width; ++b) rank += out_vertex[b] < in_vertex[a];
+    if(rank >= d || neighbour[rank] != in_vertex[a]) return false;  // a boundary edge
+    matched |= std::uint32_t(1) << rank;
+    side1[rank] = in_corner[a];
+  }
+  if(matched != all) return false;  // two incoming halfedges from one neighbour
+  Index below = 0;
+  for(int a = 0; a < Width; ++a) below += out_vertex[a] < i;
+  const std::size_t at = rows.inner.size();
+  rows.inner.resize(at + std::size_t(d) + 1);
+  rows.slot_corners.resize(at + std::size_t(d) + 1);
+  Index* inner = rows.inner.data() + at;
+  std::array<Index, 2>* slots = rows.slot_corners.data() + at;
+  for(Index k = 0; k < d; ++k) {
+    const Index slot = k + (k >= below);
+    inner[slot] = neighbour[k];
+    slots[slot] = {side0[k], side1[k]};
+  }
+  inner[below] = i;
+  slots[below] = {-1, -1};
+  diagonal_slot = static_cast<Index>(at) + below;
+  rows.num_edges += d - below;
+  return true;
+}
+
 /// Builds rows [first, last) of t's pattern into `rows`; writes t.outer[i + 1] and
 /// t.diagonal_slot[i] relative to the part's first slot, and t.on_boundary[i].
 inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
 {
   const std::vector<Index>& tri = t.triangles;
+  // How many vertices ahead the triangles of a vertex's corners are prefetched.
+  constexpr Index prefetch_distance = 3;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
   // i, opposite the corner at r) and r->i (opposite q). They are packed as
   // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
@@ -284,6 +353,17 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
   rows.inner.reserve(expected);
   rows.slot_corners.reserve(expected);
   for(Index i = first; i < last; ++i) {
+    if(i + prefetch_distance < last)
+      for(Index k = t.corner_begin[i + prefetch_distance]; k < t.corner_begin[i + prefetch_distance + 1]; ++k)
+        prefetch(&tri[t.vertex_corners[k]]);
+    const Index degree = t.corner_begin[i + 1] - t.corner_begin[i];
+    const Index* corners = &t.vertex_corners[t.corner_begin[i]];
+    if(degree <= 8 ? interior_pattern_row<8>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])
+                   : degree <= 16 && interior_pattern_row<16>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])) {
+      t.outer[i + 1] = static_cast<Index>(rows.inner.size());
+      continue;
+    }
+    // A boundary vertex, a non-manifold edge or more than 16 corners: sort the halfedges.
     ring.clear();
     for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
       const Index c = t.vertex_corners[k];

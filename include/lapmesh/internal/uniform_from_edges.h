@@ -9,6 +9,7 @@
 #define LAPMESH_INTERNAL_UNIFORM_FROM_EDGES_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/mesh_extraction.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
@@ -78,6 +79,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   std::fill(outer, outer + n + 1, Index(0));
   std::vector<Index> ends;
   ends.reserve(2 * std::size_t(edges(tm).size()));
+  advise_huge_pages(ends.data(), sizeof(Index) * ends.capacity());
   for(typename GT::edge_descriptor e : edges(tm)) {
     const typename GT::halfedge_descriptor h = halfedge(e, tm);
     if(is_border(h, tm) && is_border(opposite(h, tm), tm)) continue;
@@ -95,6 +97,8 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
   }
   W.resizeNonZeros(outer[n]);
+  advise_huge_pages(W.valuePtr(), sizeof(double) * std::size_t(outer[n]));
+  advise_huge_pages(W.innerIndexPtr(), sizeof(Index) * std::size_t(outer[n]));
   Index* inner = W.innerIndexPtr();
   double* value = W.valuePtr();
   std::vector<Index> fill(outer, outer + n);

@@ -1,0 +1,77 @@
+// Internal: how the large arrays of a call meet the memory system.
+//
+// Why huge pages: a large mesh is processed in arrays of tens to hundreds of MiB, written once
+// and freed at the end of the call. glibc maps every block over its mmap threshold (at most
+// 32 MiB) afresh from the kernel at each call, so each call faults all of them in again, one
+// 4 KiB page at a time; on virtual machines each fault is expensive. Where the kernel gives
+// transparent huge pages on request (`/sys/kernel/mm/transparent_hugepage/enabled` set to
+// `madvise`; with `always` it does so anyway, with `never` not at all), advising a fresh
+// block before its first write lets it fault in 2 MiB pages instead. Only blocks of at least
+// 32 MiB are advised: glibc always maps those afresh, while it recycles smaller ones inside its
+// heap without new faults, and advising those measured slower on the project's virtual machines
+// (doc/benchmarks.md). Only the whole 2 MiB pages inside a block are advised, so memory outside
+// the block is never affected. `LAPMESH_HUGE_PAGES=0` in the environment turns the advice off
+// (read once per process).
+//
+// Why prefetches: the passes over corners read the triangles and positions at the indices of
+// the neighbours, which on a large mesh miss the caches; the addresses are known a few
+// vertices or faces ahead, so the loads can be started early.
+#ifndef LAPMESH_INTERNAL_MEMORY_H
+#define LAPMESH_INTERNAL_MEMORY_H
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
+namespace lapmesh {
+namespace internal {
+
+/// Blocks smaller than this are not advised: glibc's largest mmap threshold.
+constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
+
+/// False when the environment sets LAPMESH_HUGE_PAGES=0.
+inline bool huge_page_advice_enabled()
+{
+  static const bool enabled = [] {
+    const char* value = std::getenv("LAPMESH_HUGE_PAGES");
+    return !(value && std::strcmp(value, "0") == 0);
+  }();
+  return enabled;
+}
+
+/// Advises transparent huge pages for the whole 2 MiB pages inside [p, p + bytes), a block
+/// that has not been written yet. A hint only: nothing changes where the kernel or the
+/// platform does not support it.
+inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if(bytes < huge_page_advice_min_bytes || !huge_page_advice_enabled()) return;
+  constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
+  const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t first = (begin + huge - 1) & ~(huge - 1), last = (begin + bytes) & ~(huge - 1);
+  if(last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
+/// Starts loading the cache line at p (a hint; no effect where the compiler has none).
+inline void prefetch(const void* p) noexcept
+{
+#if defined(__GNUC__)
+  __builtin_prefetch(p);
+#else
+  (void)p;
+#endif
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif
