@@ -93,8 +93,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   g.corner_area.resize(3 * std::size_t(m));
   if(request.want_angles) g.angle.resize(3 * std::size_t(m));
   if(request.want_face_normals) g.face_normal.resize(3 * std::size_t(m));
-  for(const Eigen::VectorXd* array : {&g.cot, &g.corner_area, &g.angle, &g.face_normal})
-    advise_huge_pages(array->data(), sizeof(double) * std::size_t(array->size()));
+  for(const Eigen::VectorXd* array : {&g.cot, &g.corner_area, &g.angle, &g.face_normal}) advise_huge_pages(*array);
   // How many faces ahead the positions of a face's corners are prefetched.
   constexpr Index prefetch_distance = 16;
 
@@ -155,7 +154,7 @@ inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Eigen::V
                                           bool parallel)
 {
   Eigen::VectorXd out(t.num_vertices);
-  advise_huge_pages(out.data(), sizeof(double) * std::size_t(out.size()));
+  advise_huge_pages(out);
   for_each_index(t.num_vertices, parallel, [&](Index v) {
     double s = 0;
     for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) s += per_corner[t.vertex_corners[k]];
@@ -247,8 +246,7 @@ void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
   const Index n = t.num_vertices, nnz = t.num_nonzeros();
   S.resize(n, n);
   S.resizeNonZeros(nnz);
-  advise_huge_pages(S.valuePtr(), sizeof(double) * std::size_t(nnz));
-  advise_huge_pages(S.innerIndexPtr(), sizeof(Index) * std::size_t(nnz));
+  advise_huge_pages(S);
   Index* outer = S.outerIndexPtr();
   Index* inner = S.innerIndexPtr();
   outer[0] = 0;

@@ -8,8 +8,8 @@
 // `madvise`; with `always` it does so anyway, with `never` not at all), advising a fresh
 // block before its first write lets it fault in 2 MiB pages instead. Only blocks of at least
 // 32 MiB are advised: glibc always maps those afresh, while it recycles smaller ones inside its
-// heap without new faults, and advising those measured slower on the project's virtual machines
-// (doc/benchmarks.md). Only the whole 2 MiB pages inside a block are advised, so memory outside
+// heap without new faults, and advising those measured slower on the project's 2-core test
+// machine (doc/benchmarks.md). Only the whole 2 MiB pages inside a block are advised, so memory outside
 // the block is never affected. `LAPMESH_HUGE_PAGES=0` in the environment turns the advice off
 // (read once per process).
 //
@@ -18,6 +18,9 @@
 // vertices or faces ahead, so the loads can be started early.
 #ifndef LAPMESH_INTERNAL_MEMORY_H
 #define LAPMESH_INTERNAL_MEMORY_H
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include <cstddef>
 #include <cstdint>
@@ -59,6 +62,24 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
   (void)p;
   (void)bytes;
 #endif
+}
+
+/// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.
+template <typename Derived>
+void advise_huge_pages(const Eigen::PlainObjectBase<Derived>& array) noexcept
+{
+  advise_huge_pages(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()));
+}
+
+/// advise_huge_pages() for the values and inner indices of a sparse matrix sized by
+/// resizeNonZeros() and not yet written. Their size is the storage's: nonZeros() reads the outer
+/// indices, which are not written yet either.
+template <typename Scalar, int Options, typename StorageIndex>
+void advise_huge_pages(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix) noexcept
+{
+  const std::size_t nnz = std::size_t(matrix.data().size());
+  advise_huge_pages(matrix.valuePtr(), sizeof(Scalar) * nnz);
+  advise_huge_pages(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);
 }
 
 /// Starts loading the cache line at p (a hint; no effect where the compiler has none).

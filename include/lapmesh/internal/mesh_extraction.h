@@ -189,7 +189,7 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   const Index n = static_cast<Index>(tm.number_of_vertices()), m = static_cast<Index>(tm.number_of_faces());
   Extracted_arrays<SurfaceMesh> out;
   out.positions.resize(n, 3);
-  advise_huge_pages(out.positions.data(), sizeof(double) * std::size_t(out.positions.size()));
+  advise_huge_pages(out.positions);
   out.vertices.resize(std::size_t(n));
   out.vertex_rows.resize(std::size_t(n));
   First_index<Index> non_finite;

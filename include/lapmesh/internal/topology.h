@@ -287,7 +287,7 @@ template <int Width>
 bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index i, Pattern_rows& rows,
                           Index& diagonal_slot)
 {
-  static_assert(Width <= 32, "a corner set is a 32-bit mask");
+  static_assert(Width < 32, "a set of corners is a 32-bit mask");
   constexpr Index none = std::numeric_limits<Index>::max();  // above every vertex: counts as no smaller one
   Index out_vertex[Width], in_vertex[Width], out_corner[Width], in_corner[Width];
   for(int a = 0; a < Width; ++a) {
@@ -308,7 +308,7 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
     neighbour[rank] = out_vertex[a];
     side0[rank] = out_corner[a];
   }
-  const std::uint32_t all = d == 32 ? ~std::uint32_t(0) : (std::uint32_t(1) << d) - 1;
+  const std::uint32_t all = (std::uint32_t(1) << d) - 1;
   if(placed != all) return false;  // two outgoing halfedges to one neighbour
   for(int a = 0; a < d; ++a) {
     Index rank = 0;

@@ -97,8 +97,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
   }
   W.resizeNonZeros(outer[n]);
-  advise_huge_pages(W.valuePtr(), sizeof(double) * std::size_t(outer[n]));
-  advise_huge_pages(W.innerIndexPtr(), sizeof(Index) * std::size_t(outer[n]));
+  advise_huge_pages(W);
   Index* inner = W.innerIndexPtr();
   double* value = W.valuePtr();
   std::vector<Index> fill(outer, outer + n);
