@@ -421,7 +421,8 @@ void expect_same_topology(const lapmesh::internal::Mesh_topology& a, const lapme
 
 // The parallel topology is built in parts (rows) and vertex ranges (one per thread) that are
 // joined afterwards: it must equal the serial one field by field, on meshes large enough for
-// several of each, closed, with a boundary, and with non-manifold edges. It runs in an arena
+// several of each, closed, with a boundary, with one hole, with non-manifold edges and with a
+// face given twice. It runs in an arena
 // of 8 threads whatever the machine (one thread takes the serial path).
 TEST(Operators, ParallelTopologyEqualsTheSerialOne)
 {
@@ -433,7 +434,14 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
     fins.second.insert(fins.second.end(), {torus.second[3 * f], torus.second[3 * f + 1], fins.first});
     ++fins.first;
   }
-  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins};
+  // Parts of a closed manifold mesh fill the slots reserved for them exactly; a part with a
+  // boundary vertex overflows them, one with a face given twice leaves them short.
+  auto hole = torus;
+  const int middle = int(torus.second.size() / 6);
+  hole.second.erase(hole.second.begin() + 3 * middle, hole.second.begin() + 3 * middle + 3);
+  auto twice = torus;
+  twice.second.insert(twice.second.end(), torus.second.begin() + 3 * middle, torus.second.begin() + 3 * middle + 3);
+  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins, hole, twice};
   auto check = [&] {
     for(const auto& [n, tri] : cases) {
       ASSERT_GT(n, 4 * 16384);
@@ -452,6 +460,8 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   EXPECT_FALSE(nonmanifold.manifold);
   EXPECT_EQ(nonmanifold.fan_slot.size(), 2u);
   EXPECT_FALSE(build_corner_topology(fins.first, fins.second, true).manifold);
+  EXPECT_EQ(build_topology(hole.first, hole.second, true).num_boundary_edges, 3);
+  EXPECT_FALSE(build_topology(twice.first, twice.second, true).manifold);
 }
 
 // A Surface_mesh without removed elements is read by index (in parallel where asked): the

@@ -260,21 +260,84 @@ inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Inde
 }
 
 /// Rows of the one-ring pattern built by one part of build_topology(), with slot numbers that
-/// start at zero: the part's own arrays, moved or copied into the topology afterwards.
+/// start at zero. They are written into a slice of the topology's arrays reserved for the part
+/// (write_into()), which spares the copy of joining the parts, and the rows that do not fit in
+/// it into arrays of the part's own (all of them without a slice).
 struct Pattern_rows
 {
-  Topology_array<Index> inner;
-  Topology_array<std::array<Index, 2>> slot_corners;
+  Index* slice_inner = nullptr;
+  std::array<Index, 2>* slice_slot_corners = nullptr;
+  std::size_t slice_capacity = 0;
+  std::size_t in_slice = 0;  // the first in_slice entries are in the slice, the others in own_*
+  Topology_array<Index> own_inner;
+  Topology_array<std::array<Index, 2>> own_slot_corners;
+  std::size_t size = 0;
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
   Index num_edges = 0;
   Index num_boundary_edges = 0;
   bool manifold = true;
 
-  /// Frees the rows once they are joined (the parts together hold as much as the pattern).
+  struct Entries
+  {
+    Index* inner;
+    std::array<Index, 2>* slot_corners;
+  };
+
+  /// Rows go to the `count` entries at `inner` and `slot_corners` until they are full.
+  void write_into(Index* inner, std::array<Index, 2>* slot_corners, std::size_t count)
+  {
+    slice_inner = inner;
+    slice_slot_corners = slot_corners;
+    slice_capacity = count;
+  }
+
+  /// True when the rows fill the slice of write_into() exactly.
+  bool fill_their_slice() const { return slice_inner && in_slice == slice_capacity && size == in_slice; }
+
+  /// Room for `count` entries in the part's own arrays.
+  void reserve(std::size_t count)
+  {
+    own_inner.reserve(count);
+    own_slot_corners.reserve(count);
+  }
+
+  /// Appends `count` consecutive entries, left unset.
+  Entries append(std::size_t count)
+  {
+    if(size == in_slice && size + count <= slice_capacity) {
+      const std::size_t at = size;
+      size += count;
+      in_slice = size;
+      return {slice_inner + at, slice_slot_corners + at};
+    }
+    const std::size_t at = size - in_slice;
+    size += count;
+    own_inner.resize(size - in_slice);
+    own_slot_corners.resize(size - in_slice);
+    return {own_inner.data() + at, own_slot_corners.data() + at};
+  }
+
+  void push_back(Index vertex, std::array<Index, 2> corners)
+  {
+    const Entries e = append(1);
+    *e.inner = vertex;
+    *e.slot_corners = corners;
+  }
+
+  /// Copies the rows to `inner` and `slot_corners`.
+  void copy_to(Index* inner, std::array<Index, 2>* slot_corners) const
+  {
+    std::copy(slice_inner, slice_inner + in_slice, inner);
+    std::copy(slice_slot_corners, slice_slot_corners + in_slice, slot_corners);
+    std::copy(own_inner.begin(), own_inner.end(), inner + in_slice);
+    std::copy(own_slot_corners.begin(), own_slot_corners.end(), slot_corners + in_slice);
+  }
+
+  /// Frees the part's own arrays once the rows are joined.
   void release()
   {
-    Topology_array<Index>().swap(inner);
-    Topology_array<std::array<Index, 2>>().swap(slot_corners);
+    Topology_array<Index>().swap(own_inner);
+    Topology_array<std::array<Index, 2>>().swap(own_slot_corners);
   }
 };
 
@@ -320,11 +383,10 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
   if(matched != all) return false;  // two incoming halfedges from one neighbour
   Index below = 0;
   for(int a = 0; a < Width; ++a) below += out_vertex[a] < i;
-  const std::size_t at = rows.inner.size();
-  rows.inner.resize(at + std::size_t(d) + 1);
-  rows.slot_corners.resize(at + std::size_t(d) + 1);
-  Index* inner = rows.inner.data() + at;
-  std::array<Index, 2>* slots = rows.slot_corners.data() + at;
+  const std::size_t at = rows.size;
+  const auto entries = rows.append(std::size_t(d) + 1);
+  Index* inner = entries.inner;
+  std::array<Index, 2>* slots = entries.slot_corners;
   for(Index k = 0; k < d; ++k) {
     const Index slot = k + (k >= below);
     inner[slot] = neighbour[k];
@@ -349,9 +411,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
   // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
   // hold ~12 entries) orders them by neighbour, then side.
   std::vector<std::uint64_t> ring;
-  const std::size_t expected = 7 * std::size_t(last - first);
-  rows.inner.reserve(expected);
-  rows.slot_corners.reserve(expected);
+  if(!rows.slice_inner) rows.reserve(7 * std::size_t(last - first));
   for(Index i = first; i < last; ++i) {
     if(i + prefetch_distance < last)
       for(Index k = t.corner_begin[i + prefetch_distance]; k < t.corner_begin[i + prefetch_distance + 1]; ++k)
@@ -360,7 +420,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
     const Index* corners = &t.vertex_corners[t.corner_begin[i]];
     if(degree <= 8 ? interior_pattern_row<8>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])
                    : degree <= 16 && interior_pattern_row<16>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])) {
-      t.outer[i + 1] = static_cast<Index>(rows.inner.size());
+      t.outer[i + 1] = static_cast<Index>(rows.size);
       continue;
     }
     // A boundary vertex, a non-manifold edge or more than 16 corners: sort the halfedges.
@@ -379,9 +439,8 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
     }
     bool diagonal_done = false;
     auto emit_diagonal = [&] {
-      t.diagonal_slot[i] = static_cast<Index>(rows.inner.size());
-      rows.inner.push_back(i);
-      rows.slot_corners.push_back({-1, -1});
+      t.diagonal_slot[i] = static_cast<Index>(rows.size);
+      rows.push_back(i, {-1, -1});
       diagonal_done = true;
     };
     for(std::size_t k = 0; k < ring.size();) {
@@ -401,7 +460,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
       if(fan) {
         rows.manifold = false;
         if(j > i) {
-          rows.fan_slot.push_back(static_cast<Index>(rows.inner.size()));
+          rows.fan_slot.push_back(static_cast<Index>(rows.size));
           for(std::size_t r = first_key; r < k; ++r)
             rows.fan_corners.push_back(static_cast<Index>(ring[r] & 0xffffffffu));
           rows.fan_begin.push_back(static_cast<Index>(rows.fan_corners.size()));
@@ -412,11 +471,10 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
         if(j > i) ++rows.num_boundary_edges;
       }
       if(j > i) ++rows.num_edges;
-      rows.inner.push_back(j);
-      rows.slot_corners.push_back(corners);
+      rows.push_back(j, corners);
     }
     if(!diagonal_done) emit_diagonal();
-    t.outer[i + 1] = static_cast<Index>(rows.inner.size());
+    t.outer[i + 1] = static_cast<Index>(rows.size);
   }
 }
 
@@ -437,19 +495,41 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
   constexpr Index rows_per_part = 16384;
   // One thread (TBB limited to one, say) gains nothing from parts and would pay their join.
   const bool in_parts = thread_count(parallel) > 1;
-  std::vector<Pattern_rows> parts(std::size_t(in_parts ? (n + rows_per_part - 1) / rows_per_part : 1));
-  if(parts.size() == 1) {
-    build_pattern_rows(t, 0, n, parts[0]);
-  } else {
-    for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
-      build_pattern_rows(t, first, last, parts[std::size_t(p)]);
-    });
+  if(!in_parts) {
+    Pattern_rows rows;
+    build_pattern_rows(t, 0, n, rows);
+    t.inner = std::move(rows.own_inner);
+    t.slot_corners = std::move(rows.own_slot_corners);
+    t.num_edges = rows.num_edges;
+    t.num_boundary_edges = rows.num_boundary_edges;
+    t.manifold = rows.manifold;
+    t.fan_slot = std::move(rows.fan_slot);
+    t.fan_begin = std::move(rows.fan_begin);
+    t.fan_corners = std::move(rows.fan_corners);
+    return t;
   }
+  // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
+  // corners + 1 slots: each part writes straight into its slice of the pattern at that offset.
+  // A part with a boundary or non-manifold vertex overflows its slice, or leaves it short,
+  // and is copied into place afterwards.
+  const std::size_t interior_slots = std::size_t(t.corner_begin[n]) + std::size_t(n);
+  t.inner.resize(interior_slots);
+  t.slot_corners.resize(interior_slots);
+  std::vector<Pattern_rows> parts(std::size_t((n + rows_per_part - 1) / rows_per_part));
+  for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
+    const std::size_t base = std::size_t(t.corner_begin[first]) + std::size_t(first);
+    const std::size_t count = std::size_t(t.corner_begin[last]) + std::size_t(last) - base;
+    Pattern_rows& part = parts[std::size_t(p)];
+    part.write_into(t.inner.data() + base, t.slot_corners.data() + base, count);
+    build_pattern_rows(t, first, last, part);
+  });
   // Join the parts: slot numbers and fans move by what the parts before them hold.
   std::vector<Index> slot_base(parts.size() + 1, 0);
+  bool all_in_place = true;
   for(std::size_t p = 0; p < parts.size(); ++p) {
     const Pattern_rows& part = parts[p];
-    slot_base[p + 1] = slot_base[p] + static_cast<Index>(part.inner.size());
+    slot_base[p + 1] = slot_base[p] + static_cast<Index>(part.size);
+    all_in_place = all_in_place && part.fill_their_slice();
     t.num_edges += part.num_edges;
     t.num_boundary_edges += part.num_boundary_edges;
     t.manifold = t.manifold && part.manifold;
@@ -458,24 +538,26 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     for(std::size_t e = 1; e < part.fan_begin.size(); ++e) t.fan_begin.push_back(part.fan_begin[e] + fan_base);
     t.fan_corners.insert(t.fan_corners.end(), part.fan_corners.begin(), part.fan_corners.end());
   }
-  if(parts.size() == 1) {
-    t.inner = std::move(parts[0].inner);
-    t.slot_corners = std::move(parts[0].slot_corners);
-    return t;
+  Topology_array<Index> inner;
+  Topology_array<std::array<Index, 2>> slot_corners;
+  if(!all_in_place) {
+    inner.resize(std::size_t(slot_base.back()));
+    slot_corners.resize(std::size_t(slot_base.back()));
   }
-  t.inner.resize(std::size_t(slot_base.back()));
-  t.slot_corners.resize(std::size_t(slot_base.back()));
   for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
-    const Pattern_rows& part = parts[std::size_t(p)];
+    Pattern_rows& part = parts[std::size_t(p)];
     const Index base = slot_base[std::size_t(p)];
-    std::copy(part.inner.begin(), part.inner.end(), t.inner.begin() + base);
-    std::copy(part.slot_corners.begin(), part.slot_corners.end(), t.slot_corners.begin() + base);
+    if(!all_in_place) part.copy_to(inner.data() + base, slot_corners.data() + base);
     for(Index i = first; i < last; ++i) {
       t.outer[i + 1] += base;
       t.diagonal_slot[i] += base;
     }
-    parts[std::size_t(p)].release();
+    part.release();
   });
+  if(!all_in_place) {
+    t.inner = std::move(inner);
+    t.slot_corners = std::move(slot_corners);
+  }
   return t;
 }
 
