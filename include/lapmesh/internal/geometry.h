@@ -186,7 +186,22 @@ inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_g
 {
   Positions out(t.num_vertices, 3);
   const Index* tri = t.triangles.data();
-  for_each_index(t.num_vertices, parallel, [&](Index i) {
+  const Index n = t.num_vertices;
+  // The triangles and cotangents of a vertex's corners are fetched twice as far ahead as the
+  // positions they name, which can only be read once the triangles have arrived.
+  constexpr Index ahead = corner_prefetch_distance;
+  for_each_index(n, parallel, [&](Index i) {
+    if(i + 2 * ahead < n)
+      for(Index k = t.corner_begin[i + 2 * ahead]; k < t.corner_begin[i + 2 * ahead + 1]; ++k) {
+        prefetch(&tri[t.vertex_corners[k]]);
+        prefetch(&g.cot[t.vertex_corners[k]]);
+      }
+    if(i + ahead < n)
+      for(Index k = t.corner_begin[i + ahead]; k < t.corner_begin[i + ahead + 1]; ++k) {
+        const Index c = t.vertex_corners[k];
+        prefetch(&P(tri[next_corner(c)], 0));
+        prefetch(&P(tri[prev_corner(c)], 0));
+      }
     const Eigen::Vector3d xi = P.row(i);
     Eigen::Vector3d s = Eigen::Vector3d::Zero();
     for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {

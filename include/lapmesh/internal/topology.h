@@ -259,6 +259,9 @@ inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Inde
   return t;
 }
 
+/// How many vertices ahead a pass over each vertex's corners prefetches their triangles.
+constexpr Index corner_prefetch_distance = 3;
+
 /// Rows of the one-ring pattern built by one part of build_topology(), with slot numbers that
 /// start at zero. They are written into a slice of the topology's arrays reserved for the part
 /// (write_into()), which spares the copy of joining the parts, and the rows that do not fit in
@@ -404,8 +407,7 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
 inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
 {
   const std::vector<Index>& tri = t.triangles;
-  // How many vertices ahead the triangles of a vertex's corners are prefetched.
-  constexpr Index prefetch_distance = 3;
+  constexpr Index prefetch_distance = corner_prefetch_distance;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
   // i, opposite the corner at r) and r->i (opposite q). They are packed as
   // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
@@ -588,6 +590,9 @@ inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index
     Counts& counts = ranges[std::size_t(range)];
     std::vector<unsigned char> seen(std::size_t(n), 0);
     for(Index i = first; i < last && counts.manifold; ++i) {
+      if(i + corner_prefetch_distance < last)
+        for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k)
+          prefetch(&tri[t.vertex_corners[k]]);
       const Index begin = t.corner_begin[i], end = t.corner_begin[i + 1];
       Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
       for(Index k = begin; k < end; ++k) {
