@@ -300,9 +300,9 @@ template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
                                           Topology_detail detail = Topology_detail::pattern, bool parallel = false)
 {
-  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles) {
-    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel)
-                                              : build_corner_topology(n, std::move(triangles), parallel);
+  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles, Topology_array<Index>&& counts) {
+    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(counts))
+                                              : build_corner_topology(n, std::move(triangles), parallel, std::move(counts));
   };
   Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np, parallel);
   Extracted_mesh<TriangleMesh> out;
@@ -310,20 +310,20 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   out.num_rows = n;
   out.vertex_rows = std::move(arrays.vertex_rows);
   if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
-  std::vector<Index> topology_vertex(n, -1);
-  for_each_index(Index(arrays.triangles.size()), parallel, [&](Index c) {
-    const Index v = arrays.triangles[std::size_t(c)];
-    if(v >= 0 && v < n) __atomic_store_n(&topology_vertex[std::size_t(v)], Index(0), __ATOMIC_RELAXED);
-  });
+  // The corner counts that the topology starts from also tell which rows are in no face.
+  Topology_array<Index> counts = count_vertex_corners(n, arrays.triangles, parallel);
   Index used = 0;
-  for(Index r = 0; r < n; ++r)
-    if(topology_vertex[r] == 0) topology_vertex[r] = used++;
+  for(Index r = 0; r < n; ++r) used += counts[std::size_t(r) + 1] > 0;
   if(used == n) {
-    out.topology = topology(n, std::move(arrays.triangles));
+    out.topology = topology(n, std::move(arrays.triangles), std::move(counts));
     out.positions = std::move(arrays.positions);
     out.vertices = std::move(arrays.vertices);
     return out;
   }
+  std::vector<Index> topology_vertex(n, -1);
+  used = 0;
+  for(Index r = 0; r < n; ++r)
+    if(counts[std::size_t(r) + 1] > 0) topology_vertex[r] = used++;
   // Rows in no face are left out of the computation.
   out.row.resize(used);
   out.positions.resize(used, 3);
@@ -335,7 +335,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
       out.vertices[topology_vertex[r]] = arrays.vertices[r];
     }
   for(Index& v : arrays.triangles) v = topology_vertex[v];
-  out.topology = topology(used, std::move(arrays.triangles));
+  out.topology = topology(used, std::move(arrays.triangles), {});
   return out;
 }
 

@@ -223,13 +223,32 @@ void for_each_vertex_range(Index n, bool parallel, const Body& body)
   });
 }
 
+/// The number of corners of each vertex v at counts[v + 1] (counts[0] = 0), after checking the
+/// faces (require_valid_faces()): the first step of build_corner_incidence(), which
+/// extract_mesh() takes on its own to find the vertices in no face. In parallel each thread
+/// takes a range of vertices and streams over all corners for theirs.
+inline Topology_array<Index> count_vertex_corners(Index n, const std::vector<Index>& tri, bool parallel)
+{
+  require_valid_faces(n, tri, parallel);
+  const Index corners = static_cast<Index>(tri.size());
+  Topology_array<Index> counts;
+  counts.assign(std::size_t(n) + 1, 0);
+  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
+    for(Index c = 0; c < corners; ++c)
+      if(tri[c] >= first && tri[c] < last) ++counts[tri[c] + 1];
+  });
+  return counts;
+}
+
 /// The part of every topology that a pass over the corners needs: the triangles, checked, and
 /// each vertex's incident corners, by a counting sort (ascending corner index per vertex).
 /// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex in
-/// no face. In parallel each thread takes a range of vertices and streams over all corners for
-/// theirs: the writes stay in its range, with no atomic counter shared between threads, and
+/// no face. `corner_counts`: count_vertex_corners() of the same triangles when the caller has
+/// it, or empty. In parallel each thread takes a range of vertices and streams over all corners
+/// for theirs: the writes stay in its range, with no atomic counter shared between threads, and
 /// the order is the serial one.
-inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
+inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+                                            Topology_array<Index> corner_counts = {})
 {
   Mesh_topology t;
   t.num_vertices = num_vertices;
@@ -237,13 +256,7 @@ inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Inde
   t.triangles = std::move(triangles);
   const Index n = num_vertices, corners = 3 * t.num_faces;
   const std::vector<Index>& tri = t.triangles;
-  require_valid_faces(n, tri, parallel);
-
-  t.corner_begin.assign(n + 1, 0);
-  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
-    for(Index c = 0; c < corners; ++c)
-      if(tri[c] >= first && tri[c] < last) ++t.corner_begin[tri[c] + 1];
-  });
+  t.corner_begin = corner_counts.empty() ? count_vertex_corners(n, tri, parallel) : std::move(corner_counts);
   for(Index v = 0; v < n; ++v) {
     if(t.corner_begin[v + 1] == 0)
       throw Mesh_error("vertex " + std::to_string(v) + " is in no face",
@@ -486,9 +499,10 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
 /// or two neighbouring faces with opposite orientations) makes the topology non-manifold
 /// (`manifold` false, the edge in `fan_slot`). In parallel (TBB) the rows are built in parts
 /// and joined in order: the result equals the serial one.
-inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
+inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+                                   Topology_array<Index> corner_counts = {})
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel);
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(corner_counts));
   const Index n = num_vertices;
   t.outer.resize(n + 1);
   t.outer[0] = 0;
@@ -569,9 +583,10 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
 /// false), which cost most of build_topology(). Every field it fills equals build_topology()'s.
 /// A non-manifold mesh gets the full topology, whose edge fans name the edge in
 /// require_manifold()'s message.
-inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false)
+inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+                                          Topology_array<Index> corner_counts = {})
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel);
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(corner_counts));
   const Index n = num_vertices;
   const std::vector<Index>& tri = t.triangles;
   t.on_boundary.assign(n, 0);
