@@ -422,8 +422,8 @@ void expect_same_topology(const lapmesh::internal::Mesh_topology& a, const lapme
 // The parallel topology is built in parts (rows) and vertex ranges (one per thread) that are
 // joined afterwards: it must equal the serial one field by field, on meshes large enough for
 // several of each, closed, with a boundary, with one hole, with non-manifold edges and with a
-// face given twice. It runs in an arena
-// of 8 threads whatever the machine (one thread takes the serial path).
+// face given twice. It runs in an arena of 8 threads whatever the machine (one thread takes the
+// serial path).
 TEST(Operators, ParallelTopologyEqualsTheSerialOne)
 {
   using lapmesh::internal::build_corner_topology;

@@ -312,16 +312,14 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
   // The corner counts that the topology starts from also tell which rows are in no face.
   Topology_array<Index> counts = count_vertex_corners(n, arrays.triangles, parallel);
-  Index used = 0;
-  for(Index r = 0; r < n; ++r) used += counts[std::size_t(r) + 1] > 0;
-  if(used == n) {
+  if(std::all_of(counts.begin() + 1, counts.end(), [](Index corners) { return corners > 0; })) {
     out.topology = topology(n, std::move(arrays.triangles), std::move(counts));
     out.positions = std::move(arrays.positions);
     out.vertices = std::move(arrays.vertices);
     return out;
   }
   std::vector<Index> topology_vertex(n, -1);
-  used = 0;
+  Index used = 0;
   for(Index r = 0; r < n; ++r)
     if(counts[std::size_t(r) + 1] > 0) topology_vertex[r] = used++;
   // Rows in no face are left out of the computation.

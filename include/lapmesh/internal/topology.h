@@ -420,7 +420,6 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
 inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
 {
   const std::vector<Index>& tri = t.triangles;
-  constexpr Index prefetch_distance = corner_prefetch_distance;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
   // i, opposite the corner at r) and r->i (opposite q). They are packed as
   // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
@@ -428,8 +427,8 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
   std::vector<std::uint64_t> ring;
   if(!rows.slice_inner) rows.reserve(7 * std::size_t(last - first));
   for(Index i = first; i < last; ++i) {
-    if(i + prefetch_distance < last)
-      for(Index k = t.corner_begin[i + prefetch_distance]; k < t.corner_begin[i + prefetch_distance + 1]; ++k)
+    if(i + corner_prefetch_distance < last)
+      for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k)
         prefetch(&tri[t.vertex_corners[k]]);
     const Index degree = t.corner_begin[i + 1] - t.corner_begin[i];
     const Index* corners = &t.vertex_corners[t.corner_begin[i]];
@@ -508,37 +507,28 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
   t.outer[0] = 0;
   t.diagonal_slot.resize(n);
   t.on_boundary.assign(n, 0);
-  constexpr Index rows_per_part = 16384;
-  // One thread (TBB limited to one, say) gains nothing from parts and would pay their join.
+  // One thread (TBB limited to one, say) gains nothing from parts: a single part takes all rows.
   const bool in_parts = thread_count(parallel) > 1;
-  if(!in_parts) {
-    Pattern_rows rows;
-    build_pattern_rows(t, 0, n, rows);
-    t.inner = std::move(rows.own_inner);
-    t.slot_corners = std::move(rows.own_slot_corners);
-    t.num_edges = rows.num_edges;
-    t.num_boundary_edges = rows.num_boundary_edges;
-    t.manifold = rows.manifold;
-    t.fan_slot = std::move(rows.fan_slot);
-    t.fan_begin = std::move(rows.fan_begin);
-    t.fan_corners = std::move(rows.fan_corners);
-    return t;
+  const Index rows_per_part = in_parts ? 16384 : std::max<Index>(n, 1);
+  std::vector<Pattern_rows> parts(in_parts ? std::size_t((n + rows_per_part - 1) / rows_per_part) : 1);
+  if(in_parts) {
+    // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
+    // corners + 1 slots: each part writes straight into its slice of the pattern at that
+    // offset. A part with a boundary or non-manifold vertex overflows its slice, or leaves it
+    // short, and is copied into place afterwards.
+    const std::size_t interior_slots = std::size_t(t.corner_begin[n]) + std::size_t(n);
+    t.inner.resize(interior_slots);
+    t.slot_corners.resize(interior_slots);
+    for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
+      const std::size_t base = std::size_t(t.corner_begin[first]) + std::size_t(first);
+      const std::size_t count = std::size_t(t.corner_begin[last]) + std::size_t(last) - base;
+      Pattern_rows& part = parts[std::size_t(p)];
+      part.write_into(t.inner.data() + base, t.slot_corners.data() + base, count);
+      build_pattern_rows(t, first, last, part);
+    });
+  } else {
+    build_pattern_rows(t, 0, n, parts[0]);
   }
-  // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
-  // corners + 1 slots: each part writes straight into its slice of the pattern at that offset.
-  // A part with a boundary or non-manifold vertex overflows its slice, or leaves it short,
-  // and is copied into place afterwards.
-  const std::size_t interior_slots = std::size_t(t.corner_begin[n]) + std::size_t(n);
-  t.inner.resize(interior_slots);
-  t.slot_corners.resize(interior_slots);
-  std::vector<Pattern_rows> parts(std::size_t((n + rows_per_part - 1) / rows_per_part));
-  for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
-    const std::size_t base = std::size_t(t.corner_begin[first]) + std::size_t(first);
-    const std::size_t count = std::size_t(t.corner_begin[last]) + std::size_t(last) - base;
-    Pattern_rows& part = parts[std::size_t(p)];
-    part.write_into(t.inner.data() + base, t.slot_corners.data() + base, count);
-    build_pattern_rows(t, first, last, part);
-  });
   // Join the parts: slot numbers and fans move by what the parts before them hold.
   std::vector<Index> slot_base(parts.size() + 1, 0);
   bool all_in_place = true;
@@ -554,26 +544,29 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     for(std::size_t e = 1; e < part.fan_begin.size(); ++e) t.fan_begin.push_back(part.fan_begin[e] + fan_base);
     t.fan_corners.insert(t.fan_corners.end(), part.fan_corners.begin(), part.fan_corners.end());
   }
-  Topology_array<Index> inner;
-  Topology_array<std::array<Index, 2>> slot_corners;
-  if(!all_in_place) {
-    inner.resize(std::size_t(slot_base.back()));
-    slot_corners.resize(std::size_t(slot_base.back()));
-  }
-  for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
-    Pattern_rows& part = parts[std::size_t(p)];
+  // Each part numbered its rows' slots from its own first one.
+  for_each_part(n, rows_per_part, parts.size() > 1, [&](Index p, Index first, Index last) {
     const Index base = slot_base[std::size_t(p)];
-    if(!all_in_place) part.copy_to(inner.data() + base, slot_corners.data() + base);
-    for(Index i = first; i < last; ++i) {
+    for(Index i = first; i < last && base > 0; ++i) {
       t.outer[i + 1] += base;
       t.diagonal_slot[i] += base;
     }
+  });
+  if(all_in_place) return t;
+  if(parts.size() == 1 && parts[0].in_slice == 0) {  // all rows in the part's own arrays
+    t.inner = std::move(parts[0].own_inner);
+    t.slot_corners = std::move(parts[0].own_slot_corners);
+    return t;
+  }
+  Topology_array<Index> inner(std::size_t(slot_base.back()));
+  Topology_array<std::array<Index, 2>> slot_corners(std::size_t(slot_base.back()));
+  for_each_part(n, rows_per_part, true, [&](Index p, Index, Index) {
+    Pattern_rows& part = parts[std::size_t(p)];
+    part.copy_to(inner.data() + slot_base[std::size_t(p)], slot_corners.data() + slot_base[std::size_t(p)]);
     part.release();
   });
-  if(!all_in_place) {
-    t.inner = std::move(inner);
-    t.slot_corners = std::move(slot_corners);
-  }
+  t.inner = std::move(inner);
+  t.slot_corners = std::move(slot_corners);
   return t;
 }
 
