@@ -37,13 +37,18 @@ namespace internal {
 /// Blocks smaller than this are not advised: glibc's largest mmap threshold.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
-/// False when the environment sets LAPMESH_HUGE_PAGES=0.
+/// The environment variable that turns huge pages off, for the library's advice and for the
+/// command line's restart alike.
+constexpr const char* huge_pages_variable = "LAPMESH_HUGE_PAGES";
+
+/// True for the value of huge_pages_variable that turns huge pages off ("0"); `value` is
+/// nullptr when the variable is unset.
+inline bool huge_pages_switched_off(const char* value) { return value && std::strcmp(value, "0") == 0; }
+
+/// False when the environment turns huge pages off (huge_pages_switched_off()).
 inline bool huge_page_advice_enabled()
 {
-  static const bool enabled = [] {
-    const char* value = std::getenv("LAPMESH_HUGE_PAGES");
-    return !(value && std::strcmp(value, "0") == 0);
-  }();
+  static const bool enabled = !huge_pages_switched_off(std::getenv(huge_pages_variable));
   return enabled;
 }
 
