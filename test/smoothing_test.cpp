@@ -160,6 +160,46 @@ TEST(Smoothing, ExplicitBlowsUpAboveTheBoundAndNotBelow)
   }
 }
 
+// Far above the bound the positions overflow: the error names the first step that wrote a
+// coordinate that is not finite (one step fewer runs through with finite ones), serially and in
+// parallel parts, and the mesh is left as it was.
+TEST(Smoothing, ExplicitDivergenceNamesTheFirstNonFiniteStep)
+{
+  const Mesh input = jittered(lapmesh::icosphere(5), 0.002, 5);
+  ASSERT_GT(num_vertices(input), 2u * 4096u);
+  const double lambda = 100 * lapmesh::explicit_stability_bound(input);
+  auto smooth = [&](Mesh& m, int iterations, bool parallel) {
+    const auto np = LP::fixed_operator(true).number_of_iterations(iterations);
+    if(parallel)
+      lapmesh::smooth_laplacian_explicit<CGAL::Parallel_tag>(m, lambda, np);
+    else
+      lapmesh::smooth_laplacian_explicit(m, lambda, np);
+  };
+  int first_serial = 0;
+  for(bool parallel : {false, true}) {
+    Mesh m = input;
+    int first = 0;
+    try {
+      smooth(m, 10000, parallel);
+    } catch(const lapmesh::Numerical_error& e) {
+      const std::string message = e.what(), prefix = "diverged at iteration ";
+      const auto at = message.find(prefix);
+      ASSERT_NE(at, std::string::npos) << message;
+      first = std::atoi(message.c_str() + at + prefix.size());
+    }
+    ASSERT_GT(first, 1) << "no divergence reported, parallel " << parallel;
+    EXPECT_EQ(positions(m), positions(input));
+    if(!parallel) first_serial = first;
+    EXPECT_EQ(first, first_serial);
+
+    Mesh before = input;
+    smooth(before, first - 1, parallel);
+    const Eigen::MatrixXd P = positions(before);
+    EXPECT_TRUE(P.allFinite());
+    EXPECT_GT(P.cwiseAbs().maxCoeff(), 1e100);
+  }
+}
+
 TEST(Smoothing, UniformImplicitEqualsDenseInverse)
 {
   const Mesh input = jittered(lapmesh::icosphere(2), 0.05, 2);

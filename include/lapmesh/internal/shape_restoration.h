@@ -69,6 +69,10 @@ public:
       throw Mesh_error(m_measure == Measure::volume ? "volume restoration: the mesh encloses no volume"
                                                     : "area restoration: the mesh has no area");
   }
+
+  /// False when apply() leaves the positions as they are.
+  bool rescales() const { return m_measure != Measure::none; }
+
   void apply(const Mesh_topology& t, Positions& P) const
   {
     if(m_measure == Measure::none) return;

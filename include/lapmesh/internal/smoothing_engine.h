@@ -30,6 +30,7 @@
 #include <Eigen/SparseCore>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -301,7 +302,9 @@ private:
   void restore_shape(int it)
   {
     m_restoration->apply(m_t, m_P);
-    if(is_explicit() && !m_P.allFinite())
+    // The explicit step checks the values it writes; a restoration rescales them, so they are
+    // checked again after it.
+    if(is_explicit() && !(m_step_finite && (!m_restoration->rescales() || m_P.allFinite())))
       throw Numerical_error("explicit smoothing diverged at iteration " + std::to_string(it + 1) + " (lambda " +
                             std::to_string(m_s.lambda) + " is above the stability bound " +
                             std::to_string(m_report.stability_bound) + ")");
@@ -316,19 +319,33 @@ private:
     const Index* inner = S.innerIndexPtr();
     const double* values = S.valuePtr();
     const Positions& P = m_P;
-    for_each_index(m_t.num_vertices, m_s.parallel, [&](Index i) {
-      if(!m_free_mask[i]) { m_next.row(i) = P.row(i); return; }
-      double x = 0, y = 0, z = 0;
-      for(Index k = outer[i]; k < outer[i + 1]; ++k) {
-        const double w = values[k];
-        const double* p = P.data() + 3 * std::size_t(inner[k]);
-        x += w * p[0]; y += w * p[1]; z += w * p[2];
+    // Divergence shows as coordinates that are no longer finite: checked on the values as they
+    // are written, which spares a pass over all positions after each step. x - x is zero for a
+    // finite x and NaN otherwise, so a part's sum of them stays zero while all are finite.
+    std::atomic<bool> finite{true};
+    for_each_part(m_t.num_vertices, Index(4096), m_s.parallel, [&](Index, Index first, Index last) {
+      double non_finite = 0;
+      for(Index i = first; i < last; ++i) {
+        if(!m_free_mask[i]) {
+          m_next.row(i) = P.row(i);
+          continue;
+        }
+        double x = 0, y = 0, z = 0;
+        for(Index k = outer[i]; k < outer[i + 1]; ++k) {
+          const double w = values[k];
+          const double* p = P.data() + 3 * std::size_t(inner[k]);
+          x += w * p[0]; y += w * p[1]; z += w * p[2];
+        }
+        const double c = m_s.lambda / m_pencil.mass[i];
+        const double nx = P(i, 0) + c * x, ny = P(i, 1) + c * y, nz = P(i, 2) + c * z;
+        m_next(i, 0) = nx;
+        m_next(i, 1) = ny;
+        m_next(i, 2) = nz;
+        non_finite += (nx - nx) + (ny - ny) + (nz - nz);
       }
-      const double c = m_s.lambda / m_pencil.mass[i];
-      m_next(i, 0) = P(i, 0) + c * x;
-      m_next(i, 1) = P(i, 1) + c * y;
-      m_next(i, 2) = P(i, 2) + c * z;
+      if(!(non_finite == 0)) finite.store(false, std::memory_order_relaxed);
     });
+    m_step_finite = finite.load();
     m_P.swap(m_next);
     m_report.solve_seconds += seconds_since(t0);
   }
@@ -423,6 +440,7 @@ private:
   bool m_rebuild = false;  ///< the operator (or its mass) follows the positions
   // explicit
   Positions m_next;
+  bool m_step_finite = true;  ///< the last explicit step wrote finite positions only
   // implicit / conformal
   std::optional<Constrained_spd_system> m_system;
   std::unique_ptr<Spd_direct_solver> m_solver;
