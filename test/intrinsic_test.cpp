@@ -16,6 +16,7 @@
 #include <Eigen/SparseCholesky>
 
 #include <fstream>
+#include <functional>
 #include <random>
 
 using namespace lapmesh_test;
@@ -413,6 +414,38 @@ TEST(IntrinsicDelaunay, FacesStoredApartAndWeldedGiveTheMeshsOperators)
     EXPECT_LT(CGAL::squared_distance(apart.point(v), expected), 1e-20) << "copy " << v << " of " << weld[v];
     if(weld[v] == 0) { EXPECT_EQ(apart.point(v), origin); }
   }
+}
+
+// An error that names a vertex names the input's vertex, not its place among the vertices in
+// faces: here vertex 0 is in no face and vertex 1 has a negative Voronoi area (the angle at
+// vertex 3 of its first face is near 180 degrees).
+TEST(IntrinsicDelaunay, ErrorsNameTheInputVertexWhenAVertexIsInNoFace)
+{
+  Mesh m;
+  m.add_vertex(Point(9, 9, 9));
+  const auto a = m.add_vertex(Point(-1, 0, 0)), b = m.add_vertex(Point(1, 0, 0)), c = m.add_vertex(Point(0, 0.05, 0)),
+             d = m.add_vertex(Point(0, -1, 0));
+  m.add_face(a, b, c);
+  m.add_face(b, a, d);
+  const auto voronoi = LP::vertex_area(lapmesh::Vertex_area::voronoi);
+  auto H = m.add_property_map<Mesh::Vertex_index, double>("v:H", 0).first;
+  auto K = m.add_property_map<Mesh::Vertex_index, double>("v:K", 0).first;
+  const auto expect_vertex_1 = [](const std::function<void()>& call, const char* what) {
+    try {
+      call();
+      ADD_FAILURE() << what << ": no error";
+    } catch(const lapmesh::Mesh_error& e) {
+      EXPECT_EQ(e.element(), lapmesh::Mesh_error::Element::vertex) << what;
+      EXPECT_EQ(e.index(), 1) << what;
+      EXPECT_EQ(std::string(e.what()).rfind("vertex 1 ", 0), 0u) << what << ": " << e.what();
+    }
+  };
+  expect_vertex_1([&] { lapmesh::compute_mean_curvature(m, H, voronoi); }, "mean curvature");
+  expect_vertex_1([&] { lapmesh::compute_gaussian_curvature(m, K, voronoi); }, "Gaussian curvature");
+  expect_vertex_1([&] { lapmesh::explicit_stability_bound(m, voronoi); }, "stability bound");
+  expect_vertex_1([&] { Mesh w = m; lapmesh::smooth_laplacian_explicit(w, 1e-3, LP::fix_boundary(false, voronoi)); },
+                  "smoothing");
+  expect_vertex_1([&] { lapmesh::Spectral_basis::compute(m, 2, voronoi); }, "eigenpairs");
 }
 
 TEST(IntrinsicDelaunay, VerticesInNoFaceFollowThePolicy)

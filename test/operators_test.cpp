@@ -464,6 +464,23 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   EXPECT_FALSE(build_topology(twice.first, twice.second, true).manifold);
 }
 
+// An error from a renumbered computation names the input's vertex: the whole number only.
+TEST(Operators, ErrorsOfARenumberedMeshNameTheInputVertex)
+{
+  lapmesh::internal::Extracted_mesh<Mesh> mesh;
+  mesh.num_rows = 200;
+  mesh.row = {5, 3, 123, 7};
+  using Element = lapmesh::Mesh_error::Element;
+  const auto e = mesh.in_rows(lapmesh::Mesh_error("vertex 12 is far; vertex 1 has a negative area", Element::vertex, 1));
+  EXPECT_STREQ(e.what(), "vertex 12 is far; vertex 3 has a negative area");
+  EXPECT_EQ(e.index(), 3);
+  const auto last = mesh.in_rows(lapmesh::Mesh_error("at vertex 2", Element::vertex, 2));
+  EXPECT_STREQ(last.what(), "at vertex 123");
+  const auto face = mesh.in_rows(lapmesh::Mesh_error("face 2 has zero area", Element::face, 2));
+  EXPECT_STREQ(face.what(), "face 2 has zero area");
+  EXPECT_EQ(face.index(), 2);
+}
+
 // A Surface_mesh without removed elements is read by index (in parallel where asked): the
 // same arrays and the same errors as the general reader of any FaceGraph.
 TEST(Operators, SurfaceMeshIsReadAsAnyFaceGraph)

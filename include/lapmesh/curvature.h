@@ -163,8 +163,10 @@ auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_
   const Laplacian laplacian = choose_laplacian(np);
   auto mesh = extract_mesh(tm, np, laplacian == Laplacian::cotangent ? Topology_detail::corners : Topology_detail::pattern,
                            is_parallel<ConcurrencyTag>());
-  Vertex_curvatures c = compute_curvatures(mesh.topology, mesh.positions, laplacian, choose_vertex_area(np),
-                                           with_gaussian, is_parallel<ConcurrencyTag>(), choose_mollification(np));
+  Vertex_curvatures c = mesh.naming_input_vertices([&] {
+    return compute_curvatures(mesh.topology, mesh.positions, laplacian, choose_vertex_area(np), with_gaussian,
+                              is_parallel<ConcurrencyTag>(), choose_mollification(np));
+  });
   if(mesh.num_rows_in_no_face() > 0) {  // curvature is undefined there: NaN, and a zero area
     const double nan = std::numeric_limits<double>::quiet_NaN();
     c.mean = mesh.to_rows(c.mean, nan);
@@ -282,9 +284,12 @@ void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gauss
                                              ? internal::Topology_detail::pattern
                                              : internal::Topology_detail::corners,
                                            internal::is_parallel<ConcurrencyTag>());
-  const Eigen::VectorXd K = internal::compute_gaussian_curvature_only(
-    mesh.topology, mesh.positions, laplacian, internal::choose_vertex_area(np),
-    internal::is_parallel<ConcurrencyTag>(), internal::choose_mollification(np));
+  const Eigen::VectorXd K = mesh.naming_input_vertices([&] {
+    return internal::compute_gaussian_curvature_only(mesh.topology, mesh.positions, laplacian,
+                                                     internal::choose_vertex_area(np),
+                                                     internal::is_parallel<ConcurrencyTag>(),
+                                                     internal::choose_mollification(np));
+  });
   internal::write_row_values(mesh.vertex_rows, mesh.to_rows(K, std::numeric_limits<double>::quiet_NaN()),
                              gaussian_curvature_map);
 }

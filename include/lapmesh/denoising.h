@@ -354,7 +354,8 @@ Denoising_study run_denoising_study(const TriangleMesh& tm, const Denoising_stud
                                     const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto mesh = internal::extract_mesh(tm, np);
-  return internal::run_denoising_study(mesh.topology, mesh.positions, settings);
+  return mesh.naming_input_vertices(
+    [&] { return internal::run_denoising_study(mesh.topology, mesh.positions, settings); });
 }
 
 } // namespace lapmesh

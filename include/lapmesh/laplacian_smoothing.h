@@ -150,7 +150,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   }
 
   const internal::Positions before = mesh.positions;
-  Smoothing_report report = smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s);
+  Smoothing_report report = mesh.naming_input_vertices(
+    [&] { return smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s); });
 
   // Write back only what moved: fixed vertices keep their exact kernel coordinates.
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
@@ -240,7 +241,7 @@ double explicit_stability_bound(const TriangleMesh& tm, const NamedParameters& n
   const Vertex_area area = internal::choose_vertex_area(np);
   internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, false, pencil,
                             internal::choose_mollification(np));
-  internal::require_positive_mass(lap, pencil.mass, area);
+  mesh.naming_input_vertices([&] { internal::require_positive_mass(lap, pencil.mass, area); });
   const bool fix_boundary =
     CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::fix_boundary), true);
   const std::vector<char> free_mask =

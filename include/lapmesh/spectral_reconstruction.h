@@ -104,7 +104,8 @@ public:
     Laplacian_pencil pencil;
     internal::assemble_pencil(mesh.topology, mesh.positions, lap, area, internal::is_parallel<ConcurrencyTag>(),
                               pencil, internal::choose_mollification(np));
-    Spectral_basis b = from_pencil(pencil, k, internal::choose_spectral_options(np), area);
+    Spectral_basis b =
+      mesh.naming_input_vertices([&] { return from_pencil(pencil, k, internal::choose_spectral_options(np), area); });
     b.m_laplacian = lap;
     b.m_area = area;
     if(mesh.num_rows_in_no_face() > 0) {  // zero eigenvector entries and mass there

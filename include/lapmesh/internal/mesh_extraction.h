@@ -31,7 +31,9 @@
 #include <CGAL/boost/graph/properties.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -78,6 +80,35 @@ struct Extracted_mesh
   std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
 
   Index num_rows_in_no_face() const { return row.empty() ? 0 : num_rows - Index(row.size()); }
+
+  /// `error` with the topology vertex it names replaced by its row, the input's index.
+  Mesh_error in_rows(const Mesh_error& error) const
+  {
+    if(row.empty() || error.element() != Mesh_error::Element::vertex || error.index() < 0 ||
+       error.index() >= std::int64_t(row.size()))
+      return error;
+    const std::int64_t input_index = row[std::size_t(error.index())];
+    std::string what = error.what();
+    const std::string named = "vertex " + std::to_string(error.index());
+    for(std::size_t at = what.find(named); at != std::string::npos; at = what.find(named, at + 1))
+      if(at + named.size() == what.size() || !std::isdigit(static_cast<unsigned char>(what[at + named.size()]))) {
+        what.replace(at, named.size(), "vertex " + std::to_string(input_index));
+        break;
+      }
+    return Mesh_error(what, Mesh_error::Element::vertex, input_index);
+  }
+
+  /// Returns f(); a Mesh_error from it that names a topology vertex names the input's instead
+  /// (in_rows()): the computations on the topology know only its numbering.
+  template <typename F>
+  decltype(auto) naming_input_vertices(F&& f) const
+  {
+    try {
+      return f();
+    } catch(const Mesh_error& error) {
+      throw in_rows(error);
+    }
+  }
 
   /// Calls f(vertex, topology vertex) for every vertex in a face (welded copies included).
   template <typename F>
