@@ -1,6 +1,6 @@
 #include "huge_pages.h"
 
-#include <lapmesh/internal/memory.h>
+#include <lapmesh/huge_pages.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -30,7 +30,7 @@ std::string read_text(const char* path)
 bool huge_pages_restart_wanted(const char* switch_value, const char* tunables, const std::string& thp_mode,
                                std::uintmax_t largest_input)
 {
-  if(lapmesh::internal::huge_pages_switched_off(switch_value)) return false;
+  if(lapmesh::huge_pages_switched_off(switch_value)) return false;
   if(tunables && std::strstr(tunables, tunable)) return false;  // set by the user, or this is the restarted run
   return thp_mode.find("[madvise]") != std::string::npos && largest_input >= huge_pages_min_input_bytes;
 }
@@ -46,7 +46,7 @@ void restart_with_huge_pages_if_useful(int argc, char** argv)
     }
   }
   const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if(!huge_pages_restart_wanted(std::getenv(lapmesh::internal::huge_pages_variable), tunables,
+  if(!huge_pages_restart_wanted(std::getenv(lapmesh::huge_pages_variable), tunables,
                                 read_text("/sys/kernel/mm/transparent_hugepage/enabled"), largest))
     return;
   const std::string previous = tunables ? tunables : "";

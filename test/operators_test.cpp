@@ -464,8 +464,8 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   EXPECT_FALSE(build_topology(twice.first, twice.second, true).manifold);
 }
 
-// An error from a renumbered computation names the input's vertex: the whole number only.
-TEST(Operators, ErrorsOfARenumberedMeshNameTheInputVertex)
+// An error from the topology's numbering names the input's vertex (its row): the whole number only.
+TEST(Operators, ErrorsOfTheTopologyNameTheInputVertex)
 {
   lapmesh::internal::Extracted_mesh<Mesh> mesh;
   mesh.num_rows = 200;

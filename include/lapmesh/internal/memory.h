@@ -19,13 +19,13 @@
 #ifndef LAPMESH_INTERNAL_MEMORY_H
 #define LAPMESH_INTERNAL_MEMORY_H
 
+#include <lapmesh/huge_pages.h>
+
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
 #include <cstddef>
 #include <cstdint>
-#include <cstdlib>
-#include <cstring>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -37,28 +37,13 @@ namespace internal {
 /// Blocks smaller than this are not advised: glibc's largest mmap threshold.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
-/// The environment variable that turns huge pages off, for the library's advice and for the
-/// command line's restart alike.
-constexpr const char* huge_pages_variable = "LAPMESH_HUGE_PAGES";
-
-/// True for the value of huge_pages_variable that turns huge pages off ("0"); `value` is
-/// nullptr when the variable is unset.
-inline bool huge_pages_switched_off(const char* value) { return value && std::strcmp(value, "0") == 0; }
-
-/// False when the environment turns huge pages off (huge_pages_switched_off()).
-inline bool huge_page_advice_enabled()
-{
-  static const bool enabled = !huge_pages_switched_off(std::getenv(huge_pages_variable));
-  return enabled;
-}
-
 /// Advises transparent huge pages for the whole 2 MiB pages inside [p, p + bytes), a block
 /// that has not been written yet. A hint only: nothing changes where the kernel or the
 /// platform does not support it.
 inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(bytes < huge_page_advice_min_bytes || !huge_page_advice_enabled()) return;
+  if(bytes < huge_page_advice_min_bytes || !huge_pages_enabled()) return;
   constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
   const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p);
   const std::uintptr_t first = (begin + huge - 1) & ~(huge - 1), last = (begin + bytes) & ~(huge - 1);
