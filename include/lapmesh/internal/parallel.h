@@ -46,6 +46,7 @@ void for_each_index(IndexType n, bool parallel, const Body& body, IndexType grai
   }
 #endif
   (void)parallel;
+  (void)grain;
   for(IndexType i = 0; i < n; ++i) body(i);
 }
 
