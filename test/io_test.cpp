@@ -779,3 +779,149 @@ TEST(IoHostile, FuzzRegressionsEndInACleanErrorAndSeedsRead)
   EXPECT_GE(regressions, 15u);
   EXPECT_GE(seeds, 15u);
 }
+
+namespace {
+
+// The mesh that CGAL::Euler::add_face() builds from the triangles in order, vertex i = point i.
+Mesh added_face_by_face(const lapmesh::io::Polygon_soup& soup, const std::vector<std::array<std::size_t, 3>>& tris)
+{
+  Mesh m;
+  for(const auto& p : soup.points) m.add_vertex(Point(p[0], p[1], p[2]));
+  for(const auto& t : tris) {
+    const std::array<Mesh::Vertex_index, 3> face = {Mesh::Vertex_index(Mesh::size_type(t[0])),
+                                                    Mesh::Vertex_index(Mesh::size_type(t[1])),
+                                                    Mesh::Vertex_index(Mesh::size_type(t[2]))};
+    EXPECT_NE(CGAL::Euler::add_face(face, m), Mesh::null_face());
+  }
+  return m;
+}
+
+// The number of elements whose connectivity differs between a and b (-1: different sizes).
+long connectivity_differences(const Mesh& a, const Mesh& b)
+{
+  if(a.number_of_vertices() != b.number_of_vertices() || a.number_of_halfedges() != b.number_of_halfedges() ||
+     a.number_of_faces() != b.number_of_faces())
+    return -1;
+  long differences = 0;
+  for(Mesh::Halfedge_index h : a.halfedges())
+    differences += a.target(h) != b.target(h) || a.face(h) != b.face(h) || a.next(h) != b.next(h) || a.prev(h) != b.prev(h);
+  for(Mesh::Face_index f : a.faces()) differences += a.halfedge(f) != b.halfedge(f);
+  for(Mesh::Vertex_index v : a.vertices()) differences += a.halfedge(v) != b.halfedge(v) || a.point(v) != b.point(v);
+  return differences;
+}
+
+} // namespace
+
+TEST(Io, AManifoldSurfaceMeshIsBuiltExactlyAsFaceByFace)
+{
+  // Closed, with boundaries, several components, faces in shuffled order, a vertex in no face.
+  const lapmesh::Triangle_soup sphere = lapmesh::bumpy_sphere(1);
+  lapmesh::io::Polygon_soup with_isolated;
+  with_isolated.points.assign(sphere.points.begin(), sphere.points.end());
+  for(const auto& t : sphere.triangles)
+    with_isolated.polygons.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
+  with_isolated.points.push_back({5, 5, 5});
+  std::vector<std::pair<std::string, lapmesh::io::Polygon_soup>> cases = {
+    {"bumpy sphere with a vertex in no face", with_isolated}};
+  for(const char* name : {"cube-ouvert.off", "blobby_3cc.off", "blobby-shuffled.off", "double-torus-3-holes.off",
+                          "elephant.off"})
+    cases.emplace_back(name, lapmesh::io::read_polygon_soup(cgal_mesh(name)));
+  for(const auto& [name, soup] : cases) {
+    SCOPED_TRACE(name);
+    const auto tris = lapmesh::io::soup_to_triangles(soup);
+    Mesh fast;
+    ASSERT_TRUE(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, fast));
+    EXPECT_TRUE(fast.is_valid(false));
+    EXPECT_EQ(connectivity_differences(fast, added_face_by_face(soup, tris)), 0);
+    Mesh read;  // the reader takes the same path
+    std::vector<std::size_t> input_vertex;
+    lapmesh::io::triangles_to_mesh(soup, tris, read, &input_vertex);
+    EXPECT_TRUE(input_vertex.empty());
+    EXPECT_EQ(connectivity_differences(read, fast), 0);
+  }
+}
+
+TEST(Io, SurfacesThatAreNotManifoldAreLeftToFaceByFace)
+{
+  lapmesh::io::Polygon_soup soup;
+  soup.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  using Tris = std::vector<std::array<std::size_t, 3>>;
+  const std::vector<std::pair<std::string, Tris>> refused = {
+    {"two faces meeting at a vertex only", {{0, 1, 2}, {0, 3, 4}}},
+    {"two closed fans meeting at a vertex", {{0, 2, 1}, {0, 1, 5}, {0, 5, 2}, {1, 2, 5}, {0, 4, 3}, {0, 3, 6}, {0, 6, 4}, {3, 4, 6}}},
+    {"three faces on an edge", {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}}},
+    {"neighbours of opposite orientations", {{0, 1, 2}, {0, 1, 3}}}};
+  for(const auto& [name, tris] : refused) {
+    Mesh m;
+    EXPECT_FALSE(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, m)) << name;
+    EXPECT_EQ(m.number_of_vertices(), 0u) << name;
+  }
+  // Faces meeting at a vertex only: add_face() holds them, as it did before the fast path.
+  Mesh bowtie;
+  std::vector<std::size_t> input_vertex;
+  lapmesh::io::triangles_to_mesh(soup, refused[0].second, bowtie, &input_vertex);
+  EXPECT_TRUE(input_vertex.empty());
+  EXPECT_EQ(connectivity_differences(bowtie, added_face_by_face(soup, refused[0].second)), 0);
+  // An open fan, a closed one: built.
+  for(const Tris& tris : {Tris{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}}, Tris{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}}}) {
+    Mesh m;
+    EXPECT_TRUE(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, m));
+    EXPECT_EQ(connectivity_differences(m, added_face_by_face(soup, tris)), 0);
+  }
+}
+
+TEST(Io, NumbersAreWrittenAsPrintfWrites17Digits)
+{
+  // Written by the mesh writer and by printf, independently, for numbers of every kind.
+  const std::vector<double> values = {0.0, -0.0, 1.0, -1.5, 0.1, 1.0 / 3.0, 123456789012345678.0, 1e-5, 1e16,
+                                      -2.5e-308, 4.9406564584124654e-324, 1.7976931348623157e308,
+                                      std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                                      std::numeric_limits<double>::quiet_NaN()};
+  std::mt19937_64 bits_source(7);
+  std::vector<double> all = values;
+  for(int i = 0; i < 3000; ++i) {
+    std::uint64_t bits = bits_source();
+    double x;
+    std::memcpy(&x, &bits, sizeof x);
+    all.push_back(x);
+  }
+  while(all.size() % 3 != 0) all.push_back(0.5);
+  lapmesh::Vertex_vectors P(Eigen::Index(all.size() / 3), 3);
+  for(std::size_t i = 0; i < all.size(); ++i) P(Eigen::Index(i / 3), Eigen::Index(i % 3)) = all[i];
+  std::ostringstream written;
+  lapmesh::io::write_mesh(written, "obj", P, {{0, 1, 2}});
+  std::string expected;
+  char buf[128];
+  for(Eigen::Index i = 0; i < P.rows(); ++i) {
+    std::snprintf(buf, sizeof buf, "v %.17g %.17g %.17g\n", P(i, 0), P(i, 1), P(i, 2));
+    expected += buf;
+  }
+  expected += "f 1 2 3\n";
+  EXPECT_EQ(written.str(), expected);
+  std::ostringstream one;
+  lapmesh::io::put_double(one, 1.0 / 3.0);
+  EXPECT_EQ(one.str(), "0.33333333333333331");
+}
+
+TEST(Io, TextOutputIsTheSameAcrossItsBlocks)
+{
+  // Blocks of 16 bytes: every kind of item crosses a block boundary somewhere.
+  std::ostringstream blocked, direct;
+  {
+    lapmesh::io::internal::Text_output out(blocked, 16);
+    for(int i = 0; i < 500; ++i) {
+      out.put(std::size_t(i) * 7919u);
+      out.put(' ');
+      out.put(-i);
+      out.put(" x ");
+      out.put(i * 0.1);
+      out.put(std::string(i % 80, 'a'));
+      out.put('\n');
+      direct << std::size_t(i) * 7919u << ' ' << -i << " x ";
+      lapmesh::io::put_double(direct, i * 0.1);
+      direct << std::string(i % 80, 'a') << '\n';
+    }
+    out.flush();
+  }
+  EXPECT_EQ(blocked.str(), direct.str());
+}

@@ -10,11 +10,13 @@
 // range; zero-area faces, vertices in no face and non-manifold edges are counted, not
 // refused), polygons with more than three vertices are triangulated by ear clipping, faces
 // are re-oriented consistently where the surface allows it, and the mesh is built with the
-// input vertex order (face by face, with the input numbering to weld it, when a FaceGraph
+// input vertex order (a Surface_mesh of a manifold surface at once, as CGAL's add_face() would
+// build it; otherwise face by face, with the input numbering to weld it, when a FaceGraph
 // cannot hold it as it is).
 //
 // Writing. OFF (COFF with colours), PLY (ASCII, with per-vertex double properties and
-// colours), OBJ and STL, every number with 17 significant digits. Writes are atomic: the
+// colours), OBJ and STL, every number with 17 significant digits (printf's "%.17g", formatted
+// by std::to_chars into large blocks: internal/io_text_output.h). Writes are atomic: the
 // data goes to a temporary file in the destination directory, renamed over the target only
 // when complete, so a failure never leaves a partial file; temporary files that a killed
 // lapmesh left behind are removed by the next write to that directory.
@@ -29,6 +31,8 @@
 #include <lapmesh/internal/io_input.h>
 #include <lapmesh/internal/io_parsers.h>
 #include <lapmesh/internal/io_soup.h>
+#include <lapmesh/internal/io_text_output.h>
+#include <lapmesh/internal/surface_mesh_builder.h>
 
 #include <CGAL/boost/graph/Euler_operations.h>
 #include <CGAL/boost/graph/helpers.h>
@@ -101,8 +105,13 @@ void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<st
   using GT = boost::graph_traits<MutableFaceGraph>;
   using Point = typename boost::property_traits<
     typename boost::property_map<MutableFaceGraph, CGAL::vertex_point_t>::type>::value_type;
-  CGAL::clear(g);
   if(input_vertex) input_vertex->clear();
+  // A Surface_mesh of a manifold surface is built at once: the same mesh as the faces added
+  // one by one below, several times faster.
+  if constexpr(lapmesh::internal::is_surface_mesh<MutableFaceGraph>::value) {
+    if(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, g)) return;
+  }
+  CGAL::clear(g);
   auto vpm = get(CGAL::vertex_point, g);
   std::vector<typename GT::vertex_descriptor> vs;
   vs.reserve(soup.points.size());
@@ -175,12 +184,11 @@ inline void write_atomically(const std::string& path, const std::function<void(s
   lapmesh::internal::write_file_atomically(path, write);
 }
 
-/// Formats a double with 17 significant digits (round-trips exactly).
+/// Formats a double with 17 significant digits (round-trips exactly), as printf's "%.17g".
 inline void put_double(std::ostream& os, double x)
 {
-  char buf[32];
-  const int len = std::snprintf(buf, sizeof buf, "%.17g", x);
-  os.write(buf, len);
+  char buf[internal::formatted_double_room];
+  os.write(buf, internal::format_double(buf, x) - buf);
 }
 
 /// Writes vertices P (n x 3) and triangles to the stream `os` in `format` ("off", "ply",
@@ -197,68 +205,96 @@ inline void write_mesh(std::ostream& os, const std::string& format, const Vertex
   for(const auto& s : attributes.scalars)
     if(s.second.size() != n) throw std::invalid_argument("one value per vertex expected for " + s.first);
 
-  {
-    auto put_point = [&](std::size_t i) {
-      put_double(os, P(Eigen::Index(i), 0)); os << ' ';
-      put_double(os, P(Eigen::Index(i), 1)); os << ' ';
-      put_double(os, P(Eigen::Index(i), 2));
-    };
-    if(ext == "off") {
-      os << (colors ? "COFF\n" : "OFF\n") << n << ' ' << tris.size() << " 0\n";
-      for(std::size_t i = 0; i < n; ++i) {
-        put_point(i);
-        if(colors) {
-          const Rgb& c = attributes.colors[i];
-          os << ' ' << int(c.r) << ' ' << int(c.g) << ' ' << int(c.b) << " 255";
-        }
-        os << '\n';
-      }
-      for(const auto& t : tris) os << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
-    } else if(ext == "ply") {
-      os << "ply\nformat ascii 1.0\ncomment written by lapmesh\nelement vertex " << n
-         << "\nproperty double x\nproperty double y\nproperty double z\n";
-      for(const auto& s : attributes.scalars) os << "property double " << s.first << '\n';
-      if(colors) os << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-      os << "element face " << tris.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
-      for(std::size_t i = 0; i < n; ++i) {
-        put_point(i);
-        for(const auto& s : attributes.scalars) {
-          os << ' ';
-          put_double(os, s.second[i]);
-        }
-        if(colors) {
-          const Rgb& c = attributes.colors[i];
-          os << ' ' << int(c.r) << ' ' << int(c.g) << ' ' << int(c.b);
-        }
-        os << '\n';
-      }
-      for(const auto& t : tris) os << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
-    } else if(ext == "obj") {
-      for(std::size_t i = 0; i < n; ++i) {
-        os << "v ";
-        put_point(i);
-        os << '\n';
-      }
-      for(const auto& t : tris) os << "f " << t[0] + 1 << ' ' << t[1] + 1 << ' ' << t[2] + 1 << '\n';
-    } else {  // stl
-      os << "solid lapmesh\n";
-      for(const auto& t : tris) {
-        const Eigen::Vector3d a = P.row(Eigen::Index(t[0])), b = P.row(Eigen::Index(t[1])), c = P.row(Eigen::Index(t[2]));
-        Eigen::Vector3d nrm = (b - a).cross(c - a);
-        if(nrm.norm() > 0) nrm.normalize();
-        os << "facet normal ";
-        put_double(os, nrm.x()); os << ' '; put_double(os, nrm.y()); os << ' '; put_double(os, nrm.z());
-        os << "\nouter loop\n";
-        for(std::size_t v : t) {
-          os << "vertex ";
-          put_point(v);
-          os << '\n';
-        }
-        os << "endloop\nendfacet\n";
-      }
-      os << "endsolid lapmesh\n";
+  internal::Text_output out(os);
+  auto put_point = [&](std::size_t i) {
+    out.put(P(Eigen::Index(i), 0));
+    out.put(' ');
+    out.put(P(Eigen::Index(i), 1));
+    out.put(' ');
+    out.put(P(Eigen::Index(i), 2));
+  };
+  auto put_color = [&](std::size_t i) {
+    const Rgb& c = attributes.colors[i];
+    for(int channel : {int(c.r), int(c.g), int(c.b)}) {
+      out.put(' ');
+      out.put(channel);
     }
+  };
+  auto put_faces = [&](const char* prefix, std::size_t base) {
+    for(const auto& t : tris) {
+      out.put(prefix);
+      out.put(t[0] + base);
+      out.put(' ');
+      out.put(t[1] + base);
+      out.put(' ');
+      out.put(t[2] + base);
+      out.put('\n');
+    }
+  };
+  if(ext == "off") {
+    out.put(colors ? "COFF\n" : "OFF\n");
+    out.put(n);
+    out.put(' ');
+    out.put(tris.size());
+    out.put(" 0\n");
+    for(std::size_t i = 0; i < n; ++i) {
+      put_point(i);
+      if(colors) {
+        put_color(i);
+        out.put(" 255");
+      }
+      out.put('\n');
+    }
+    put_faces("3 ", 0);
+  } else if(ext == "ply") {
+    out.put("ply\nformat ascii 1.0\ncomment written by lapmesh\nelement vertex ");
+    out.put(n);
+    out.put("\nproperty double x\nproperty double y\nproperty double z\n");
+    for(const auto& s : attributes.scalars) out.put("property double " + s.first + '\n');
+    if(colors) out.put("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    out.put("element face ");
+    out.put(tris.size());
+    out.put("\nproperty list uchar int vertex_indices\nend_header\n");
+    for(std::size_t i = 0; i < n; ++i) {
+      put_point(i);
+      for(const auto& s : attributes.scalars) {
+        out.put(' ');
+        out.put(s.second[i]);
+      }
+      if(colors) put_color(i);
+      out.put('\n');
+    }
+    put_faces("3 ", 0);
+  } else if(ext == "obj") {
+    for(std::size_t i = 0; i < n; ++i) {
+      out.put("v ");
+      put_point(i);
+      out.put('\n');
+    }
+    put_faces("f ", 1);
+  } else {  // stl
+    out.put("solid lapmesh\n");
+    for(const auto& t : tris) {
+      const Eigen::Vector3d a = P.row(Eigen::Index(t[0])), b = P.row(Eigen::Index(t[1])), c = P.row(Eigen::Index(t[2]));
+      Eigen::Vector3d nrm = (b - a).cross(c - a);
+      if(nrm.norm() > 0) nrm.normalize();
+      out.put("facet normal ");
+      out.put(nrm.x());
+      out.put(' ');
+      out.put(nrm.y());
+      out.put(' ');
+      out.put(nrm.z());
+      out.put("\nouter loop\n");
+      for(std::size_t v : t) {
+        out.put("vertex ");
+        put_point(v);
+        out.put('\n');
+      }
+      out.put("endloop\nendfacet\n");
+    }
+    out.put("endsolid lapmesh\n");
   }
+  out.flush();
 }
 
 /// Writes vertices P (n x 3) and triangles to `path` in the format of its extension

@@ -68,6 +68,16 @@ inline bool parse_double(std::string_view t, double& x)
   return e && *e == '\0' && e != s.c_str() && !std::isspace(static_cast<unsigned char>(s[0]));
 }
 
+/// A part of an error message given as text, or as a function that makes it: the loops over
+/// millions of vertices and faces name each one only when it has an error.
+inline std::string message_text(const std::string& text) { return text; }
+inline std::string message_text(const char* text) { return text; }
+template <typename MakeText>
+std::string message_text(const MakeText& make_text)
+{
+  return make_text();
+}
+
 /// Tokenizer over text in memory with line numbers. Tokens are separated by blanks; '\n'
 /// ends a line; with `comments`, '#' starts a comment that runs to the end of the line.
 /// Nothing scans ahead: a refused token costs at most max_token_chars bytes of reading.
@@ -139,23 +149,25 @@ public:
     return true;
   }
   /// Reads the three coordinates of a vertex; `where` names it in the message.
-  void coordinates(std::array<double, 3>& p, const std::string& where)
+  template <typename Label>
+  void coordinates(std::array<double, 3>& p, const Label& where)
   {
     for(double& x : p) {
       const std::string_view t = token();
-      if(t.empty()) fail(where + ": expected three coordinates");
-      if(!parse_double(t, x)) fail(where + ": bad coordinate " + excerpt(t));
+      if(t.empty()) fail(message_text(where) + ": expected three coordinates");
+      if(!parse_double(t, x)) fail(message_text(where) + ": bad coordinate " + excerpt(t));
     }
   }
   /// Reads an integer token; fails with a message built from `what` otherwise.
-  long long integer(const std::string& what)
+  template <typename Label>
+  long long integer(const Label& what)
   {
     const std::string_view t = token();
-    if(t.empty()) fail("expected " + what + ", found the end of the line");
+    if(t.empty()) fail("expected " + message_text(what) + ", found the end of the line");
     long long x = 0;
     const Int_parse r = parse_integer(t, x);
-    if(r == Int_parse::out_of_range) fail(what + " " + excerpt(t) + " is out of range");
-    if(r != Int_parse::ok) fail("expected " + what + ", found " + excerpt(t));
+    if(r == Int_parse::out_of_range) fail(message_text(what) + " " + excerpt(t) + " is out of range");
+    if(r != Int_parse::ok) fail("expected " + message_text(what) + ", found " + excerpt(t));
     return x;
   }
   /// Excerpt of the data at the reading position (does not scan ahead).
@@ -183,21 +195,24 @@ private:
 };
 
 /// Fails unless `count` items of at least `min_bytes` each fit in `available` bytes.
-inline void check_fits(unsigned long long count, std::size_t min_bytes, std::size_t available, const std::string& what)
+template <typename Label>
+void check_fits(unsigned long long count, std::size_t min_bytes, std::size_t available, const Label& what)
 {
   if(min_bytes > 0 && (unsigned __int128)count * min_bytes > (unsigned __int128)available)
-    throw Io_error("the file declares " + std::to_string(count) + " " + what + ", more than its remaining " +
-                   std::to_string(available) + " bytes can hold (truncated or corrupt header)");
+    throw Io_error("the file declares " + std::to_string(count) + " " + message_text(what) +
+                   ", more than its remaining " + std::to_string(available) +
+                   " bytes can hold (truncated or corrupt header)");
 }
 
 /// Optional numeric fields after the values lapmesh reads (colours, normals, texture
 /// coordinates): at most `max_fields` numbers, then the end of the line.
-inline void skip_numeric_fields(Text_reader& r, int max_fields, const std::string& where)
+template <typename Label>
+void skip_numeric_fields(Text_reader& r, int max_fields, const Label& where)
 {
   for(int k = 0; !r.at_line_end(); ++k) {
     const std::string_view t = r.token();
     double ignored;
-    if(k >= max_fields || !parse_double(t, ignored)) r.fail(where + ": unexpected " + excerpt(t));
+    if(k >= max_fields || !parse_double(t, ignored)) r.fail(message_text(where) + ": unexpected " + excerpt(t));
   }
 }
 
@@ -235,27 +250,28 @@ inline Polygon_soup parse_off(std::string_view data)
   for(long long i = 0; i < nv; ++i) {
     if(!r.next_line())
       throw Io_error("truncated file: expected " + std::to_string(nv) + " vertices, found " + std::to_string(i));
-    r.coordinates(soup.points[std::size_t(i)], "vertex " + std::to_string(i));
-    skip_numeric_fields(r, 9, "vertex " + std::to_string(i));  // normal, colour, texture
+    const auto vertex = [i] { return "vertex " + std::to_string(i); };
+    r.coordinates(soup.points[std::size_t(i)], vertex);
+    skip_numeric_fields(r, 9, vertex);  // normal, colour, texture
   }
   soup.polygons.resize(std::size_t(nf));
   for(long long f = 0; f < nf; ++f) {
     if(!r.next_line())
       throw Io_error("truncated file: expected " + std::to_string(nf) + " faces, found " + std::to_string(f));
-    const std::string face = "face " + std::to_string(f);
-    const long long k = r.integer(face + ": the number of vertices");
-    if(k < 1) r.fail(face + ": bad vertex count " + std::to_string(k));
-    check_fits((unsigned long long)k, 2, r.remaining() + 1, "vertices in " + face);
+    const auto face = [f] { return "face " + std::to_string(f); };
+    const long long k = r.integer([&] { return face() + ": the number of vertices"; });
+    if(k < 1) r.fail(face() + ": bad vertex count " + std::to_string(k));
+    check_fits((unsigned long long)k, 2, r.remaining() + 1, [&] { return "vertices in " + face(); });
     auto& poly = soup.polygons[std::size_t(f)];
     poly.resize(std::size_t(k));
     for(long long a = 0; a < k; ++a) {
       const std::string_view t = r.token();
-      if(t.empty()) r.fail(face + ": expected " + std::to_string(k) + " vertex indices, found " + std::to_string(a));
+      if(t.empty()) r.fail(face() + ": expected " + std::to_string(k) + " vertex indices, found " + std::to_string(a));
       long long idx = -1;
       const Int_parse res = parse_integer(t, idx);
-      if(res == Int_parse::not_integer) r.fail(face + ": bad vertex index " + excerpt(t));
+      if(res == Int_parse::not_integer) r.fail(face() + ": bad vertex index " + excerpt(t));
       if(res == Int_parse::out_of_range || idx < 0 || idx >= nv)
-        r.fail(face + ": vertex index " + (res == Int_parse::ok ? std::to_string(idx) : excerpt(t)) +
+        r.fail(face() + ": vertex index " + (res == Int_parse::ok ? std::to_string(idx) : excerpt(t)) +
                " out of range [0, " + std::to_string(nv) + ")");
       poly[std::size_t(a)] = std::size_t(idx);
     }

@@ -188,8 +188,16 @@ inline std::size_t orient_consistently(std::vector<std::array<std::size_t, 3>>& 
   return flipped;
 }
 
-} // namespace internal
+/// True when the polygon names some vertex more than once (a triangle is checked without a copy).
+inline bool uses_a_vertex_twice(const std::vector<std::size_t>& poly)
+{
+  if(poly.size() == 3) return poly[0] == poly[1] || poly[1] == poly[2] || poly[0] == poly[2];
+  std::vector<std::size_t> sorted = poly;
+  std::sort(sorted.begin(), sorted.end());
+  return std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
+}
 
+} // namespace internal
 
 /// Validates a soup and turns it into triangles over the same vertices, oriented
 /// consistently where the surface allows it. Throws Mesh_error naming the vertex or face
@@ -228,9 +236,7 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
     if(poly.size() < 3) fail("has fewer than 3 vertices");
     for(std::size_t idx : poly)
       if(idx >= n) fail("has vertex index " + std::to_string(idx) + " out of range [0, " + std::to_string(n) + ")");
-    std::vector<std::size_t> sorted = poly;
-    std::sort(sorted.begin(), sorted.end());
-    if(std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
+    if(internal::uses_a_vertex_twice(poly)) {
       ++rep.dropped_faces;
       continue;
     }
@@ -269,12 +275,13 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
     if(dense[i] == 0) dense[i] = used++;
   rep.isolated_vertices = n - std::size_t(used);
 
-  // Fast path: lapmesh's topology check finds consistently oriented manifold edges.
+  // Fast path: lapmesh's corner topology finds consistently oriented manifold edges (its
+  // `manifold` is the full topology's, without building the sparsity pattern).
   std::vector<lapmesh::internal::Index> flat;
   flat.reserve(3 * tris.size());
   for(const auto& t : tris)
     for(std::size_t v : t) flat.push_back(dense[v]);
-  if(!lapmesh::internal::build_topology(used, std::move(flat)).manifold)
+  if(!lapmesh::internal::build_corner_topology(used, std::move(flat)).manifold)
     rep.flipped_faces = internal::orient_consistently(tris, rep);
   if(report) *report = rep;
   return tris;
