@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace lapmesh {
@@ -25,7 +26,7 @@ namespace internal {
 /// true; when the triangles are not a consistently oriented manifold surface (an edge with
 /// two faces on one side or more than two faces, a vertex whose faces form several fans),
 /// leaves `g` empty and returns false, for the caller to add the faces one at a time.
-/// Preconditions: indices in range, no face with a repeated vertex, fewer than 2^31 corners.
+/// Preconditions: indices in range, no face with a repeated vertex.
 template <typename SurfaceMesh>
 bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& points,
                                  const std::vector<std::array<std::size_t, 3>>& triangles, SurfaceMesh& g)
@@ -36,6 +37,9 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   using Halfedge = typename SurfaceMesh::Halfedge_index;
   using Face = typename SurfaceMesh::Face_index;
   g.clear();
+  // Halfedges are numbered up to twice the corners: beyond Index's range, add_face() builds it.
+  constexpr std::size_t index_limit = std::size_t(std::numeric_limits<Index>::max());
+  if(points.size() > index_limit || triangles.size() > index_limit / 6) return false;
   const Index n = Index(points.size()), corners = Index(3 * triangles.size());
   const auto vertex_of = [&](Index c) { return Index(triangles[std::size_t(c) / 3][std::size_t(c) % 3]); };
 
@@ -53,9 +57,8 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   // from b to a: the halfedge of the corner before a corner of a whose previous vertex is b.
   // So each vertex's own corners pair its halfedges up, and show whether its faces form one fan
   // (turning around a, the face after the one of corner k is the one whose previous vertex is
-  // k's next vertex).
-  // corner_halfedge holds -2 - (the opposite corner) until the halfedges are numbered below,
-  // -1 where there is none.
+  // k's next vertex). Until the halfedges are numbered below, corner_halfedge holds
+  // -2 - (the opposite corner), or -1 where there is none.
   std::vector<Index> corner_halfedge(std::size_t(corners), -1);
   std::vector<Index> ring_next, ring_prev;
   for(Index a = 0; a < n; ++a) {
@@ -101,8 +104,8 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   }
 
   // Edges are numbered as add_face() creates them: in face order, the halfedge of the face
-  // that meets the edge first is the even one.
-  // An opposite corner comes later in corner order, or it would have numbered this one.
+  // that meets the edge first is the even one. (An opposite corner comes later in corner
+  // order, or it would have numbered this one.)
   std::vector<char> on_border(std::size_t(corners), 0);
   Index edges = 0;
   for(Index c = 0; c < corners; ++c) {
