@@ -833,7 +833,7 @@ TEST(Io, AManifoldSurfaceMeshIsBuiltExactlyAsFaceByFace)
     ASSERT_TRUE(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, fast));
     EXPECT_TRUE(fast.is_valid(false));
     EXPECT_EQ(connectivity_differences(fast, added_face_by_face(soup, tris)), 0);
-    Mesh read;  // the reader takes the same path
+    Mesh read;  // what the reader builds from the same triangles
     std::vector<std::size_t> input_vertex;
     lapmesh::io::triangles_to_mesh(soup, tris, read, &input_vertex);
     EXPECT_TRUE(input_vertex.empty());

@@ -60,20 +60,21 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   // k's next vertex). Until the halfedges are numbered below, corner_halfedge holds
   // -2 - (the opposite corner), or -1 where there is none.
   std::vector<Index> corner_halfedge(std::size_t(corners), -1);
-  std::vector<Index> ring_next, ring_prev;
+  std::vector<Index> ring_next, ring_prev, ring_after;
   for(Index a = 0; a < n; ++a) {
     const Index first = begin[std::size_t(a)], degree = begin[std::size_t(a) + 1] - first;
     if(degree == 0) continue;
     const Index* ring = &vertex_corners[std::size_t(first)];
     ring_next.resize(std::size_t(degree));
     ring_prev.resize(std::size_t(degree));
+    ring_after.assign(std::size_t(degree), -1);
     for(Index k = 0; k < degree; ++k) {
       ring_next[std::size_t(k)] = vertex_of(next_corner(ring[k]));
       ring_prev[std::size_t(k)] = vertex_of(prev_corner(ring[k]));
     }
     Index open_fans = 0, fan_start = 0;
     for(Index k = 0; k < degree; ++k) {
-      Index after = -1;
+      Index& after = ring_after[std::size_t(k)];
       bool has_before = false;
       for(Index j = 0; j < degree; ++j) {
         if(j != k && ring_next[std::size_t(j)] == ring_next[std::size_t(k)]) return false;  // a -> b twice
@@ -93,13 +94,9 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
     // every face of the vertex.
     if(open_fans > 1) return false;
     Index met = 1;
-    for(Index k = fan_start; met < degree; ++met) {
-      Index after = -1;
-      for(Index j = 0; j < degree; ++j)
-        if(ring_prev[std::size_t(j)] == ring_next[std::size_t(k)]) after = j;
-      if(after < 0 || after == fan_start) break;
-      k = after;
-    }
+    for(Index k = ring_after[std::size_t(fan_start)]; k >= 0 && k != fan_start && met < degree;
+        k = ring_after[std::size_t(k)])
+      ++met;
     if(met != degree) return false;
   }
 
