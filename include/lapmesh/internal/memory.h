@@ -30,6 +30,9 @@
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 namespace lapmesh {
 namespace internal {
@@ -70,6 +73,28 @@ void advise_huge_pages(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>&
   const std::size_t nnz = std::size_t(matrix.data().size());
   advise_huge_pages(matrix.valuePtr(), sizeof(Scalar) * nnz);
   advise_huge_pages(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);
+}
+
+/// Frees the storage of a sparse matrix, which becomes empty. Assigning an empty matrix would
+/// not: Eigen 3.4 copies into the existing storage and keeps its capacity.
+template <typename Scalar, int Options, typename StorageIndex>
+void release(Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix) noexcept
+{
+  Eigen::SparseMatrix<Scalar, Options, StorageIndex>().swap(matrix);
+}
+
+/// Hands the free memory inside glibc's heap back to the system when at least `min_bytes` of it
+/// lie unused. A symbolic analysis (METIS's graphs, AMD's work space) frees many blocks under
+/// the mmap threshold between blocks it keeps: glibc can neither trim them, being below live
+/// blocks, nor reuse them for the factor that follows, which is mapped apart, so they would stay
+/// resident through every factorisation. No effect outside glibc.
+inline void release_free_heap(std::size_t min_bytes) noexcept
+{
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+  if(mallinfo2().fordblks >= min_bytes) malloc_trim(0);
+#else
+  (void)min_bytes;
+#endif
 }
 
 /// Starts loading the cache line at p (a hint; no effect where the compiler has none).

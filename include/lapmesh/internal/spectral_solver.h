@@ -37,6 +37,7 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/types.h>
 #include <lapmesh/internal/block_lanczos.h>
+#include <lapmesh/internal/memory.h>
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -702,7 +703,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
   Factor factor;
   prepare_for_many_solves(factor);
   factorise_or_throw(factor, K);
-  K = Eigen::SparseMatrix<double>();
+  release(K);
   // Made at the first check, after the Krylov basis is gone: its matrix and structure would
   // otherwise add to the run's peak memory.
   std::optional<Eigenvalue_counter<Factor>> counter;
@@ -753,7 +754,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       K = shifted_pencil(stiffness, mass, sigma);
       factor.factorize(K);
       if(factor.info() != Eigen::Success) factorise_or_throw(factor, K);
-      K = Eigen::SparseMatrix<double>();
+      release(K);
       factor_overwritten = false;
     }
   }
