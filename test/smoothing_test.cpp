@@ -1,12 +1,16 @@
 // Smoothing: mean curvature flow on a sphere against r(t)^2 = r0^2 - 4t, the explicit
 // stability bound against a dense eigen-solve, implicit steps against dense Dirichlet solves,
-// bitwise-fixed constraints, volume restoration, denoising a noisy sphere, and the command
-// line's refusal of bad lambda/iterations (the noise itself: noise_test.cpp).
+// bitwise-fixed constraints, volume restoration, denoising a noisy sphere, the free block in
+// the solver's order against the block in index order and Eigen's LDL^T, the release of memory
+// between steps, and the command line's refusal of bad lambda/iterations (the noise itself:
+// noise_test.cpp).
 #include "test_helpers.h"
 
 #include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/noise.h>
 #include <lapmesh/io.h>
+#include <lapmesh/internal/memory.h>
+#include <lapmesh/internal/spd_solver.h>
 #include <lapmesh/internal/subnormals.h>
 
 #include <CGAL/Eigen_solver_traits.h>
@@ -15,8 +19,13 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <numeric>
+#include <random>
 #include <limits>
 #include <filesystem>
 #include <set>
@@ -274,6 +283,164 @@ TEST(Smoothing, CholmodAndEigenSolversAgree)
   EXPECT_LE((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_GT((positions(a) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);
 }
+
+TEST(Smoothing, TheFreeBlockInAGivenOrderIsThePermutedBlock)
+{
+  // Built in an order, the free block is P A_FF P^T, its right-hand side has the same rows,
+  // and its solution scattered back gives the positions of the block in index order.
+  using lapmesh::internal::Constrained_spd_system;
+  using lapmesh::internal::Index;
+  const Mesh input = to_mesh(bumpy_patch(7));
+  const auto pencil = lapmesh::laplacian_pencil(input);
+  std::vector<char> free_mask(num_vertices(input));
+  for(auto v : vertices(input)) free_mask[v.idx()] = !(input.is_border(v) || v.idx() % 5 == 2);
+  Constrained_spd_system natural(pencil.stiffness, free_mask);
+  const Index nf = natural.size();
+  std::vector<Index> order(static_cast<std::size_t>(nf));
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(7));
+  Constrained_spd_system ordered(pencil.stiffness, free_mask, order);
+  ASSERT_EQ(ordered.size(), nf);
+
+  const double lambda = 0.003;
+  natural.fill_matrix(pencil.stiffness, -lambda, pencil.mass, 1.0);
+  ordered.fill_matrix(pencil.stiffness, -lambda, pencil.mass, 1.0);
+  const auto& A = ordered.matrix();
+  for(Index c = 0; c < nf; ++c) {  // each column starts at its diagonal, rows increasing
+    ASSERT_EQ(A.innerIndexPtr()[A.outerIndexPtr()[c]], c);
+    for(Index k = A.outerIndexPtr()[c] + 1; k < A.outerIndexPtr()[c + 1]; ++k)
+      ASSERT_LT(A.innerIndexPtr()[k - 1], A.innerIndexPtr()[k]);
+  }
+  using SpMat = Eigen::SparseMatrix<double>;
+  const Eigen::MatrixXd An = Eigen::MatrixXd(SpMat(natural.matrix().selfadjointView<Eigen::Lower>()));
+  const Eigen::MatrixXd Ao = Eigen::MatrixXd(SpMat(ordered.matrix().selfadjointView<Eigen::Lower>()));
+  for(Index a = 0; a < nf; ++a)
+    for(Index b = 0; b < nf; ++b) ASSERT_EQ(Ao(a, b), An(order[a], order[b])) << a << ' ' << b;
+
+  const Eigen::MatrixXd P = positions(input);
+  Eigen::MatrixXd Bn(nf, 3), Bo(nf, 3);
+  natural.fill_rhs(pencil.stiffness, -lambda, pencil.mass, 1.0, P, Bn, false);
+  ordered.fill_rhs(pencil.stiffness, -lambda, pencil.mass, 1.0, P, Bo, false);
+  for(Index a = 0; a < nf; ++a) ASSERT_EQ(Bo.row(a), Bn.row(order[a]));
+
+  Eigen::MatrixXd Pn = P, Po = P;
+  natural.scatter(Eigen::MatrixXd(An.ldlt().solve(Bn)), Pn);
+  ordered.scatter(Eigen::MatrixXd(Ao.ldlt().solve(Bo)), Po);
+  EXPECT_LE((Pn - Po).cwiseAbs().maxCoeff(), 1e-14);
+  EXPECT_GT((Pn - P).cwiseAbs().maxCoeff(), 1e-4);  // the free rows moved
+  for(auto v : vertices(input)) {
+    if(!free_mask[v.idx()]) {
+      EXPECT_EQ(Po.row(v.idx()), P.row(v.idx()));
+    }
+  }
+}
+
+#ifdef LAPMESH_HAS_CHOLMOD
+TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
+{
+  // The block rebuilt in the order of CHOLMOD's analysis and factorised as given has the same
+  // supernodes and values as the factor of the block in index order, and its in-place solve
+  // gives Eigen's LDL^T solution.
+  using lapmesh::internal::Cholmod_supernodal_llt;
+  using lapmesh::internal::Constrained_spd_system;
+  using lapmesh::internal::Index;
+  const Mesh input = to_mesh(lapmesh::bumpy_sphere(3));
+  const auto pencil = lapmesh::laplacian_pencil(input);
+  const std::vector<char> free_mask(num_vertices(input), 1);
+  const double lambda = lapmesh::scale_free_time_step(input, 3.0);
+
+  Constrained_spd_system in_index_order(pencil.stiffness, free_mask);
+  in_index_order.fill_matrix(pencil.stiffness, -lambda, pencil.mass, 1.0);
+  Cholmod_supernodal_llt own(Cholmod_supernodal_llt::Ordering::amd);
+  own.compute(in_index_order.matrix());
+  ASSERT_EQ(own.info(), Eigen::Success);
+  const Index nf = in_index_order.size();
+  const std::vector<Index> order(own.permutation(), own.permutation() + nf);
+  EXPECT_FALSE(own.in_given_order());
+
+  Constrained_spd_system in_its_order(pencil.stiffness, free_mask, order);
+  in_its_order.fill_matrix(pencil.stiffness, -lambda, pencil.mass, 1.0);
+  Cholmod_supernodal_llt given(Cholmod_supernodal_llt::Ordering::given);
+  given.compute(in_its_order.matrix());
+  ASSERT_EQ(given.info(), Eigen::Success);
+  EXPECT_TRUE(given.in_given_order());
+  ASSERT_EQ(given.factor()->nsuper, own.factor()->nsuper);
+  ASSERT_EQ(given.factor()->xsize, own.factor()->xsize);
+  const auto* x_own = static_cast<const double*>(own.factor()->x);
+  const auto* x_given = static_cast<const double*>(given.factor()->x);
+  double largest = 0, difference = 0;
+  for(std::size_t k = 0; k < given.factor()->xsize; ++k) {
+    largest = std::max(largest, std::abs(x_own[k]));
+    difference = std::max(difference, std::abs(x_own[k] - x_given[k]));
+  }
+  EXPECT_LE(difference, 1e-13 * largest);
+
+  Eigen::MatrixXd B = Eigen::MatrixXd::Random(nf, 3), X = B;
+  ASSERT_TRUE(given.solve_in_place(X.data(), nf, 3));
+  const Eigen::SparseMatrix<double> full = in_its_order.matrix().selfadjointView<Eigen::Lower>();
+  const Eigen::MatrixXd reference = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(B);
+  EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff());
+}
+#endif
+
+TEST(Smoothing, CholmodAndEigenSolversAgreeWithConstraintsOverManySteps)
+{
+  // Enough steps for the automatic ordering (AMD or METIS), with fixed and boundary vertices:
+  // the block in the solver's order, the right-hand side with the fixed terms, the in-place
+  // solve and the stiffness released between steps give Eigen's LDL^T result.
+  const Mesh input = to_mesh(bumpy_patch(12));
+  auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), input);
+  for(auto v : vertices(input)) put(constrained, v, v.idx() % 11 == 4);
+  const int steps = lapmesh::internal::Spd_direct_solver::automatic_ordering_min_factorizations + 2;
+  Mesh a = input, b = input;
+  const auto np = CGAL::parameters::number_of_iterations(steps).vertex_is_constrained_map(constrained);
+  const auto ra = lapmesh::smooth_laplacian_implicit(a, 0.002, LP::use_cholmod(true, np));
+  const auto rb = lapmesh::smooth_laplacian_implicit(b, 0.002, LP::use_cholmod(false, np));
+  EXPECT_EQ(ra.factorizations, steps);
+  EXPECT_EQ(rb.solver, "eigen-ldlt");
+  EXPECT_LE((positions(a) - positions(b)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT((positions(a) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+TEST(Smoothing, ReleaseFreesTheStorageOfASparseMatrix)
+{
+  Eigen::SparseMatrix<double> m = Eigen::MatrixXd::Identity(40, 40).sparseView();
+  ASSERT_GT(m.data().allocatedSize(), 0);
+  lapmesh::internal::release(m);
+  EXPECT_EQ(m.data().allocatedSize(), 0);
+  EXPECT_EQ(m.rows(), 0);
+  EXPECT_EQ(m.nonZeros(), 0);
+}
+
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+TEST(Smoothing, FreedHeapBlocksBetweenLiveOnesAreHandedBack)
+{
+  // Blocks under glibc's mmap threshold, freed between blocks that stay, stay resident until
+  // release_free_heap() hands their pages back.
+  const auto resident_kib = [] {
+    std::ifstream status("/proc/self/status");
+    for(std::string line; std::getline(status, line);)
+      if(line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+    return -1L;
+  };
+  // Kept blocks of the same size: smaller ones could come from free chunks of earlier tests, and
+  // the freed blocks would then join the top of the heap, which glibc trims by itself.
+  constexpr std::size_t block = std::size_t(100) << 10, blocks = 320;  // 31.25 MiB freed
+  std::vector<std::unique_ptr<char[]>> freed, kept;
+  for(std::size_t i = 0; i < blocks; ++i) {
+    freed.emplace_back(new char[block]);
+    std::memset(freed.back().get(), 1, block);
+    kept.emplace_back(new char[block]);
+    std::memset(kept.back().get(), 1, block);
+  }
+  freed.clear();
+  const long before = resident_kib();
+  lapmesh::internal::release_free_heap(std::size_t(16) << 20);
+  const long after = resident_kib();
+  ASSERT_GT(before, 0);
+  EXPECT_GE(before - after, long(blocks * block / 1024 / 2)) << before << " KiB -> " << after << " KiB";
+}
+#endif
 
 TEST(Smoothing, ImplicitSmoothingIsScaleCovariantAtTheEndsOfTheRange)
 {

@@ -109,10 +109,14 @@ public:
   /// How the fill-reducing ordering is chosen.
   enum class Ordering {
     amd,        ///< AMD only: cheap, the best for a factorisation used once
-    automatic   ///< CHOLMOD's default: AMD, and METIS too when AMD's flops per factor entry
+    automatic,  ///< CHOLMOD's default: AMD, and METIS too when AMD's flops per factor entry
                 ///< exceed 500 (regular grids such as a torus, where METIS's factor needs far
                 ///< fewer flops); the better of the two is kept. The METIS analysis costs much
                 ///< more than AMD's.
+    given       ///< none: the matrix is already in a fill-reducing, postordered order (the
+                ///< permutation() of an earlier analysis applied to it). CHOLMOD then factorises
+                ///< the lower triangle as it is; with any other ordering it first makes two
+                ///< permuted copies of the matrix, at every factorisation.
   };
 
   /// How freely columns are merged into supernodes, at the price of explicit zeros in the factor.
@@ -143,13 +147,17 @@ public:
   }
   void set_ordering(Ordering ordering)
   {
+    // A postorder of the given order would be a permutation again, and the copies with it.
+    cholmod().postorder = ordering != Ordering::given;
     if(ordering == Ordering::automatic) {
       cholmod().nmethods = 0;
     } else {
       cholmod().nmethods = 1;
-      cholmod().method[0].ordering = CHOLMOD_AMD;
+      cholmod().method[0].ordering = ordering == Ordering::amd ? CHOLMOD_AMD : CHOLMOD_NATURAL;
     }
   }
+  /// Whether the factor is of the matrix as given (Ordering::given): no permutation to apply.
+  bool in_given_order() const { return m_cholmodFactor && m_cholmodFactor->ordering == CHOLMOD_NATURAL; }
 
   void analyzePattern(const MatrixType& A)
   {
@@ -203,6 +211,18 @@ public:
     for(Eigen::Index i = 0; i < n; ++i)
       for(Eigen::Index j = 0; j < nrhs; ++j)
         Y(perm[i], j) = scale[perm[i]] * m_rhs[std::size_t(i * row_step + j * column_step)];
+  }
+
+  /// Solves L L^T X = B in place for a factor in_given_order(): `data` holds the `cols`
+  /// right-hand sides column after column. CHOLMOD's solve would allocate the solution and a
+  /// permuted copy of the block.
+  bool solve_in_place(double* data, Eigen::Index rows, Eigen::Index cols) const
+  {
+    m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), cols);
+    cholmod_dense rhs = dense_view(data, rows, cols), work = dense_view(m_work.data(), m_work.rows(), cols);
+    cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
+    return cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common) &&
+           cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
   }
 
   /// The numeric values of the factor, for a caller that reuses their memory once the factor is

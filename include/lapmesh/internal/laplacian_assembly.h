@@ -48,10 +48,13 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
     return;
   }
   require_manifold(t, to_string(laplacian));
-  if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
-     !out.stiffness.isCompressed())
-    make_pattern_matrix(t, out.stiffness, parallel);
+  const auto size_stiffness = [&] {
+    if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
+       !out.stiffness.isCompressed())
+      make_pattern_matrix(t, out.stiffness, parallel);
+  };
   if(laplacian == Laplacian::uniform) {
+    size_stiffness();
     fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
     out.mass.resize(t.num_vertices);
     for(Index v = 0; v < t.num_vertices; ++v) out.mass[v] = t.degree(v);
@@ -59,8 +62,12 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
   }
   Corner_geometry g;
   compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
   out.mass = gather_corner_sums(t, g.corner_area, parallel);
+  // The corner areas go before a stiffness that is not there yet is sized (implicit smoothing
+  // releases it between steps): the two are never held together.
+  g.corner_area = Eigen::VectorXd();
+  size_stiffness();
+  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
 }
 
 inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)

@@ -21,6 +21,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/laplacian_assembly.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/shape_restoration.h>
 #include <lapmesh/internal/spd_solver.h>
 #include <lapmesh/internal/stability_bound.h>
@@ -207,7 +208,6 @@ private:
       return;
     }
     const auto t0 = Clock::now();
-    m_system.emplace(m_pencil.stiffness, m_free_mask);
     // The system (M - lambda S) X = M P is divided by a power of four near the mean mass: on
     // meshes of extreme scale M P would overflow (or underflow) although the solution is
     // representable. Dividing by an even power of two is exact, down to the square roots of the
@@ -219,13 +219,10 @@ private:
 
     const int planned_factorizations = m_rebuild ? m_s.iterations : 1;
     m_solver = std::make_unique<Spd_direct_solver>(m_s.use_cholmod, m_s.external_solver);
-    m_solver->analyze(m_system->matrix(), planned_factorizations);
-    if(pattern_may_change()) remember_pattern();
+    analyze_system(planned_factorizations);
     m_report.solver = m_solver->name();
     m_report.analysis_seconds += seconds_since(t0);
-    const Index nf = m_system->size();
-    m_B.resize(nf, 3);
-    m_X.resize(nf, 3);
+    m_B.resize(m_system->size(), 3);
     // Preconditioned CG is tried until it fails once: then the operator changes too fast for an
     // old factor, and refactorising directly is cheaper than failed CG runs followed by a
     // factorisation anyway.
@@ -241,15 +238,17 @@ private:
     }
     bool solved = false;
     if(!m_factorized && m_try_preconditioned_cg && m_report.factorizations > 0) solved = preconditioned_solve();
-    if(!m_factorized && !solved) factorize(it);
-    const auto t0 = Clock::now();
     if(!solved) {
-      fill_rhs();
-      if(!m_solver->solve(m_B, m_X) || !m_X.allFinite())
+      const auto t0 = Clock::now();
+      fill_rhs();  // before factorize(), which may release the stiffness
+      m_report.solve_seconds += seconds_since(t0);
+      if(!m_factorized) factorize(it);
+      const auto t1 = Clock::now();
+      if(!m_solver->solve_in_place(m_B) || !m_B.allFinite())
         throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
+      m_report.solve_seconds += seconds_since(t1);
     }
-    m_system->scatter(m_X, m_P);
-    m_report.solve_seconds += seconds_since(t0);
+    m_system->scatter(m_B, m_P);
   }
 
   /// Rebuilds the operator (or only the mass, conformal flow) from the positions after `it` steps.
@@ -274,11 +273,24 @@ private:
     // free block and a new symbolic analysis.
     if(!is_explicit() && pattern_may_change() && pattern_changed()) {
       const auto t1 = Clock::now();
-      m_system.emplace(m_pencil.stiffness, m_free_mask);
-      m_solver->analyze(m_system->matrix(), m_s.iterations - it);
-      remember_pattern();
+      analyze_system(m_s.iterations - it);
       m_report.analysis_seconds += seconds_since(t1);
     }
+  }
+
+  /// The free block of the operator's pattern and its symbolic analysis, in the solver's order.
+  void analyze_system(int planned_factorizations)
+  {
+    m_system.reset();  // an earlier block goes before the new one is built
+    m_system.emplace(m_pencil.stiffness, m_free_mask);
+    const std::vector<Index> order = m_solver->analyze(m_system->matrix(), planned_factorizations);
+    if(!order.empty()) {
+      m_system.reset();
+      m_system.emplace(m_pencil.stiffness, m_free_mask, order);
+      m_solver->analyze_in_order(m_system->matrix());
+    }
+    if(pattern_may_change()) remember_pattern();
+    release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
   }
 
   /// Only the intrinsic Delaunay operator, rebuilt, changes its pattern (its flips follow the
@@ -366,10 +378,11 @@ private:
     const auto t0 = Clock::now();
     fill_matrix();
     fill_rhs();
-    m_system->gather(m_P, m_X);
     const Index nf = m_system->size();
+    Block X(nf, 3);
+    m_system->gather(m_P, X);
     const auto Asym = m_system->matrix().selfadjointView<Eigen::Lower>();
-    Block R = m_B - Asym * m_X, Z(nf, 3), D(nf, 3), Q(nf, 3);
+    Block R = m_B - Asym * X, Z(nf, 3), D(nf, 3), Q(nf, 3);
     const Eigen::RowVector3d bnorm = m_B.colwise().norm();
     bool ok = m_solver->solve(R, Z);
     D = Z;
@@ -380,7 +393,7 @@ private:
       Q = Asym * D;
       const Eigen::RowVector3d dq = (D.cwiseProduct(Q)).colwise().sum();
       const Eigen::RowVector3d alpha = (dq.array() > 0).select(rz.array() / dq.array(), 0.0);
-      m_X += D * alpha.asDiagonal();
+      X += D * alpha.asDiagonal();
       R -= Q * alpha.asDiagonal();
       ok = m_solver->solve(R, Z);
       const Eigen::RowVector3d rz_new = (R.cwiseProduct(Z)).colwise().sum();
@@ -390,8 +403,9 @@ private:
     }
     m_report.cg_iterations += 3 * k;
     bool solved = false;
-    if(ok && m_X.allFinite() && ((R.colwise().norm().array()) <= 1e-12 * bnorm.array()).all()) {
+    if(ok && X.allFinite() && ((R.colwise().norm().array()) <= 1e-12 * bnorm.array()).all()) {
       solved = true;
+      m_B = X;  // where solve_system() takes the solution from
       ++m_report.preconditioned_solves;
     } else {
       m_try_preconditioned_cg = false;
@@ -405,6 +419,10 @@ private:
   {
     const auto t0 = Clock::now();
     fill_matrix();
+    // A stiffness that the next step assembles again is not needed until then. Released, it is
+    // held neither beside the factorisation's work space nor beside the corner areas of the
+    // next assembly (assemble_pencil() frees them before it sizes the stiffness).
+    if(m_rebuild_stiffness) release(m_pencil.stiffness);
     const bool ok = m_solver->factorize(m_system->matrix());
     ++m_report.factorizations;
     // M - lambda S is positive definite in exact arithmetic (M > 0, and -S is a sum of
@@ -445,7 +463,7 @@ private:
   std::optional<Constrained_spd_system> m_system;
   std::unique_ptr<Spd_direct_solver> m_solver;
   double m_system_scale = 1, m_scaled_lambda = 0;
-  Block m_B, m_X;
+  Block m_B;  // the right-hand side, then the solution
   bool m_factorized = false;
   std::vector<Index> m_pattern_outer, m_pattern_inner;  // of the analysed system
   bool m_try_preconditioned_cg = false;

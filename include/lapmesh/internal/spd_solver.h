@@ -8,6 +8,9 @@
 //
 // Spd_direct_solver factorises A_FF: Eigen's SimplicialLDLT, CHOLMOD's supernodal LL^T, or a
 // user's CGAL solver; the symbolic analysis is done once, each refactorisation is numeric only.
+// For CHOLMOD the free block is built in the order of its fill-reducing permutation: CHOLMOD
+// then neither copies the matrix into that order at each factorisation (two copies of the
+// block beside the factor) nor the right-hand sides at each solve.
 #ifndef LAPMESH_INTERNAL_SPD_SOLVER_H
 #define LAPMESH_INTERNAL_SPD_SOLVER_H
 
@@ -23,6 +26,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,8 +42,10 @@ public:
   using SpMat = Eigen::SparseMatrix<double>;
 
   /// `pattern`: a compressed symmetric matrix (its values are not read); `free_mask[i]` = 0 for
-  /// a fixed unknown.
-  Constrained_spd_system(const SpMat& pattern, std::vector<char> free_mask) : m_free(std::move(free_mask))
+  /// a fixed unknown; `order`: empty (the free unknowns in index order), or the order of the
+  /// block's rows: row k is the order[k]-th free unknown (the solver's fill-reducing order).
+  Constrained_spd_system(const SpMat& pattern, std::vector<char> free_mask, const std::vector<Index>& order = {})
+      : m_free(std::move(free_mask))
   {
     const Index n = Index(pattern.rows());
     const Index* outer = pattern.outerIndexPtr();
@@ -48,21 +54,39 @@ public:
     Index nf = 0;
     for(Index i = 0; i < n; ++i)
       if(m_free[i]) m_free_index[i] = nf++;
+    std::vector<Index> unknown_of_row(static_cast<std::size_t>(nf));
+    if(!order.empty()) {
+      if(Index(order.size()) != nf) throw std::logic_error("Constrained_spd_system: the order does not fit the free unknowns");
+      for(Index k = 0; k < nf; ++k) unknown_of_row[order[k]] = k;  // the row of each free unknown, for now
+      for(Index i = 0; i < n; ++i)
+        if(m_free[i]) m_free_index[i] = unknown_of_row[m_free_index[i]];
+    }
+    for(Index i = 0; i < n; ++i)
+      if(m_free[i]) unknown_of_row[m_free_index[i]] = i;
     m_A.resize(nf, nf);
     m_diagonal.resize(std::size_t(nf));
     std::vector<Index> a_outer(nf + 1, 0), a_inner;
     a_inner.reserve(std::size_t(pattern.nonZeros()) / 2 + nf);
     m_source.reserve(a_inner.capacity());
-    for(Index j = 0; j < n; ++j) {
-      if(!m_free[j]) continue;
+    for(Index c = 0; c < nf; ++c) {
+      const Index j = unknown_of_row[c];
+      const std::size_t begin = a_inner.size();
       for(Index k = outer[j]; k < outer[j + 1]; ++k) {  // column j = row j (symmetric pattern)
         const Index i = inner[k];
-        if(i < j || !m_free[i]) continue;
-        if(i == j) m_diagonal[m_free_index[j]] = Index(a_inner.size());
+        if(!m_free[i] || m_free_index[i] < c) continue;
         a_inner.push_back(m_free_index[i]);
         m_source.push_back(k);
       }
-      a_outer[m_free_index[j] + 1] = Index(a_inner.size());
+      // Rows in increasing order, as the solvers expect; in a given order they come unsorted.
+      for(std::size_t a = begin + 1; a < a_inner.size(); ++a)
+        for(std::size_t b = a; b > begin && a_inner[b - 1] > a_inner[b]; --b) {
+          std::swap(a_inner[b - 1], a_inner[b]);
+          std::swap(m_source[b - 1], m_source[b]);
+        }
+      if(a_inner.size() == begin || a_inner[begin] != c)
+        throw std::logic_error("Constrained_spd_system: the pattern lacks a diagonal entry");
+      m_diagonal[c] = Index(begin);
+      a_outer[c + 1] = Index(a_inner.size());
     }
     m_A.resizeNonZeros(Index(a_inner.size()));
     std::copy(a_outer.begin(), a_outer.end(), m_A.outerIndexPtr());
@@ -161,9 +185,13 @@ public:
 
   static constexpr int automatic_ordering_min_factorizations = 6;
 
-  void analyze(const SpMat& A, int planned_factorizations)
+  /// The symbolic analysis of A. With CHOLMOD it returns the fill-reducing order it chose: the
+  /// caller rebuilds the matrix in that order (Constrained_spd_system's `order`) and hands it to
+  /// analyze_in_order(), after which CHOLMOD factorises it without permuted copies and solves in
+  /// place. Otherwise the result is empty and the analysis is complete.
+  std::vector<Index> analyze(const SpMat& A, int planned_factorizations)
   {
-    if(m_external.factor) return;  // the user's solver analyses in its factor()
+    if(m_external.factor) return {};  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
       using Ordering = Cholmod_supernodal_llt::Ordering;
@@ -175,12 +203,25 @@ public:
         m_chol.analyzePattern(A);
       }
       if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
-      return;
+      const int* perm = m_chol.permutation();
+      return std::vector<Index>(perm, perm + A.rows());
     }
 #endif
     (void)planned_factorizations;
     m_ldlt.analyzePattern(A);
     if(m_ldlt.info() != Eigen::Success) throw Numerical_error("the symbolic analysis of the smoothing system failed");
+    return {};
+  }
+  /// The analysis of the matrix in the order that analyze() returned.
+  void analyze_in_order(const SpMat& A)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    m_chol.set_ordering(Cholmod_supernodal_llt::Ordering::given);
+    m_chol.analyzePattern(A);
+    if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
+#else
+    (void)A;
+#endif
   }
   /// False if the matrix is not (numerically) positive definite; failure() then says why.
   bool factorize(const SpMat& A)
@@ -211,24 +252,36 @@ public:
   }
   /// Why the last factorize() failed (empty after a success).
   const std::string& failure() const { return m_failure; }
-  template <typename Rhs, typename Solution>
-  bool solve(const Rhs& B, Solution& X)
+  /// Solves A X = B, X written over B (a column-major block).
+  template <typename Block>
+  bool solve_in_place(Block& B)
   {
+    static_assert(!Block::IsRowMajor, "solve_in_place() takes a column-major block");
     if(m_external.solve) {
       Eigen::MatrixXd x;
       if(!m_external.solve(Eigen::MatrixXd(B), x) || x.rows() != B.rows() || x.cols() != B.cols()) return false;
-      X = x;
+      B = x;
       return true;
     }
     Subnormals_flushed_scope flushed;
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
-      X = m_chol.solve(B);
+      if(m_chol.in_given_order()) return m_chol.solve_in_place(B.data(), B.rows(), B.cols());
+      const Eigen::MatrixXd x = m_chol.solve(B);
+      B = x;
       return m_chol.info() == Eigen::Success;
     }
 #endif
-    X = m_ldlt.solve(B);
+    const Eigen::MatrixXd x = m_ldlt.solve(B);
+    B = x;
     return m_ldlt.info() == Eigen::Success;
+  }
+  /// Solves A X = B.
+  template <typename Rhs, typename Solution>
+  bool solve(const Rhs& B, Solution& X)
+  {
+    X = B;
+    return solve_in_place(X);
   }
 
 private:
