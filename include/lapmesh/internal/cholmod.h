@@ -24,6 +24,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/supernodal_solve.h>
 
@@ -161,8 +162,11 @@ public:
 
   void analyzePattern(const MatrixType& A)
   {
-    Serial_openmp_scope serial;
-    Base::analyzePattern(A);
+    {
+      Serial_openmp_scope serial;
+      Base::analyzePattern(A);
+    }
+    release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
   }
   void factorize(const MatrixType& A)
   {
@@ -201,11 +205,7 @@ public:
     if(by_rows) {
       supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
     } else {
-      m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), nrhs);
-      cholmod_dense rhs = dense_view(m_rhs.data(), n, nrhs), work = dense_view(m_work.data(), m_work.rows(), nrhs);
-      cholmod_common* common = &const_cast<Cholmod_supernodal_llt*>(this)->cholmod();  // its status only
-      cholmod_super_lsolve(m_cholmodFactor, &rhs, &work, common);
-      cholmod_super_ltsolve(m_cholmodFactor, &rhs, &work, common);
+      solve_in_place(m_rhs.data(), n, nrhs);
     }
     Y.resize(n, nrhs);
     for(Eigen::Index i = 0; i < n; ++i)

@@ -281,16 +281,13 @@ private:
   /// The free block of the operator's pattern and its symbolic analysis, in the solver's order.
   void analyze_system(int planned_factorizations)
   {
-    m_system.reset();  // an earlier block goes before the new one is built
-    m_system.emplace(m_pencil.stiffness, m_free_mask);
+    m_system.emplace(m_pencil.stiffness, m_free_mask);  // an earlier block is destroyed first
     const std::vector<Index> order = m_solver->analyze(m_system->matrix(), planned_factorizations);
     if(!order.empty()) {
-      m_system.reset();
       m_system.emplace(m_pencil.stiffness, m_free_mask, order);
       m_solver->analyze_in_order(m_system->matrix());
     }
     if(pattern_may_change()) remember_pattern();
-    release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
   }
 
   /// Only the intrinsic Delaunay operator, rebuilt, changes its pattern (its flips follow the

@@ -54,13 +54,14 @@ public:
     Index nf = 0;
     for(Index i = 0; i < n; ++i)
       if(m_free[i]) m_free_index[i] = nf++;
-    std::vector<Index> unknown_of_row(static_cast<std::size_t>(nf));
     if(!order.empty()) {
       if(Index(order.size()) != nf) throw std::logic_error("Constrained_spd_system: the order does not fit the free unknowns");
-      for(Index k = 0; k < nf; ++k) unknown_of_row[order[k]] = k;  // the row of each free unknown, for now
+      std::vector<Index> row_of(static_cast<std::size_t>(nf));
+      for(Index k = 0; k < nf; ++k) row_of[order[k]] = k;
       for(Index i = 0; i < n; ++i)
-        if(m_free[i]) m_free_index[i] = unknown_of_row[m_free_index[i]];
+        if(m_free[i]) m_free_index[i] = row_of[m_free_index[i]];
     }
+    std::vector<Index> unknown_of_row(static_cast<std::size_t>(nf));
     for(Index i = 0; i < n; ++i)
       if(m_free[i]) unknown_of_row[m_free_index[i]] = i;
     m_A.resize(nf, nf);
