@@ -646,3 +646,67 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
     EXPECT_EQ(t.fan_slot, build_topology(n, tri).fan_slot);
   }
 }
+
+#ifdef __linux__
+TEST(Operators, LargeTopologyArraysLieInMappingsOfTheirOwnInWholeHugePages)
+{
+  using lapmesh::internal::Topology_array;
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  // The mapping that holds `address`, from /proc/self/smaps: its bounds and its VmFlags line.
+  struct Mapping
+  {
+    std::uintptr_t begin = 0, end = 0;
+    std::string flags;
+  };
+  const auto mapping_of = [](const void* address) {
+    const auto a = reinterpret_cast<std::uintptr_t>(address);
+    std::ifstream smaps("/proc/self/smaps");
+    Mapping found;
+    bool inside = false;
+    for(std::string line; std::getline(smaps, line);) {
+      std::uintptr_t begin = 0, end = 0;
+      char dash = 0;
+      std::istringstream header(line);
+      if(header >> std::hex >> begin >> dash >> end && dash == '-' && line.find(':') > line.find(' ')) {
+        inside = begin <= a && a < end;
+        if(inside) found = {begin, end, ""};
+      } else if(inside && line.rfind("VmFlags:", 0) == 0) {
+        found.flags = line;
+      }
+    }
+    return found;
+  };
+  constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
+
+  // Grown by push_back, the array moves from operator new to mappings of its own and keeps its values.
+  Topology_array<int> grown;
+  for(int i = 0; i < (3 << 20); ++i) grown.push_back(i);
+  for(int i = 0; i < (3 << 20); ++i)
+    if(grown[std::size_t(i)] != i) FAIL() << "value " << i << " lost in a reallocation";
+  const std::size_t bytes = sizeof(int) * grown.capacity();
+  ASSERT_GE(bytes, lapmesh::internal::huge_page_mapping_min_bytes);
+  const auto address = reinterpret_cast<std::uintptr_t>(grown.data());
+  EXPECT_EQ(address % huge, 0u);
+  const Mapping m = mapping_of(grown.data());
+  ASSERT_NE(m.end, 0u) << "no mapping holds the array";
+  // Its own whole 2 MiB pages (a neighbouring mapping with the same flags may merge with it).
+  EXPECT_LE(m.begin, address);
+  EXPECT_GE(m.end, address + (bytes + huge - 1) / huge * huge);
+  if(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled").good()) {
+    EXPECT_NE(m.flags.find(" hg"), std::string::npos) << "not advised huge pages: " << m.flags;
+  }
+
+  // Below the threshold: operator new, with no advice.
+  Topology_array<int> small(std::size_t(1) << 16);
+  std::iota(small.begin(), small.end(), 0);
+  EXPECT_LT(sizeof(int) * small.capacity(), lapmesh::internal::huge_page_mapping_min_bytes);
+  EXPECT_EQ(small.back(), (1 << 16) - 1);
+  EXPECT_EQ(mapping_of(small.data()).flags.find(" hg"), std::string::npos);
+
+  // Freed: the mapping is gone (unless another one has taken the address since).
+  grown = Topology_array<int>();
+  const Mapping after = mapping_of(reinterpret_cast<const void*>(address));
+  EXPECT_TRUE(after.end == 0 || after.flags.find(" hg") == std::string::npos ||
+              after.begin != m.begin || after.end != m.end);
+}
+#endif

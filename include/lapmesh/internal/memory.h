@@ -2,16 +2,18 @@
 //
 // Why huge pages: a large mesh is processed in arrays of tens to hundreds of MiB, written once
 // and freed at the end of the call. glibc maps every block over its mmap threshold (at most
-// 32 MiB) afresh from the kernel at each call, so each call faults all of them in again, one
-// 4 KiB page at a time; on virtual machines each fault is expensive. Where the kernel gives
-// transparent huge pages on request (`/sys/kernel/mm/transparent_hugepage/enabled` set to
-// `madvise`; with `always` it does so anyway, with `never` not at all), advising a fresh
-// block before its first write lets it fault in 2 MiB pages instead. Only blocks of at least
-// 32 MiB are advised: glibc always maps those afresh, while it recycles smaller ones inside its
-// heap without new faults, and advising those measured slower on the project's 2-core test
-// machine (doc/benchmarks.md). Only the whole 2 MiB pages inside a block are advised, so memory outside
-// the block is never affected. `LAPMESH_HUGE_PAGES=0` in the environment turns the advice off
-// (read once per process).
+// 32 MiB) afresh from the kernel at each call, and hands the top of its heap back when a call
+// frees more than its trim threshold, so the blocks of each call fault in again, one 4 KiB page
+// at a time; on virtual machines each fault is expensive. Where the kernel gives transparent
+// huge pages on request (`/sys/kernel/mm/transparent_hugepage/enabled` set to `madvise`; with
+// `always` it does so anyway, with `never` not at all), a fresh block advised before its first
+// write faults in 2 MiB pages instead. The arrays lapmesh allocates itself (the topology's) of
+// at least 4 MiB get mappings of their own, on 2 MiB boundaries and advised whole
+// (allocate_large()). The blocks of Eigen's arrays come from glibc: only those of at least
+// 32 MiB, which glibc maps apart, are advised, on the whole 2 MiB pages inside them, so memory
+// outside a block is never affected; advising smaller ones, inside glibc's heap, measured slower
+// on the project's 2-core test machine (doc/benchmarks.md). `LAPMESH_HUGE_PAGES=0` in the
+// environment turns both off (read once per process).
 //
 // Why prefetches: the passes over corners read the triangles and positions at the indices of
 // the neighbours, which on a large mesh miss the caches; the addresses are known a few
@@ -26,6 +28,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <new>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -55,6 +58,61 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
   (void)p;
   (void)bytes;
 #endif
+}
+
+/// Blocks of at least this size that lapmesh allocates for itself (the topology's arrays) are
+/// mapped apart on 2 MiB boundaries, in huge pages: glibc would put those under its mmap
+/// threshold in its heap, which it trims at the end of the call, so that the next call faults
+/// them in again one 4 KiB page at a time; and it maps the others a few KiB off a 2 MiB
+/// boundary, leaving their first and last 2 MiB in small pages.
+constexpr std::size_t huge_page_mapping_min_bytes = std::size_t(4) << 20;
+
+/// Whether allocate_large() maps a block of `bytes` apart (a function of the size alone, so
+/// that deallocate_large() takes the same branch).
+inline bool maps_apart(std::size_t bytes) noexcept
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  return bytes >= huge_page_mapping_min_bytes && huge_pages_enabled();
+#else
+  (void)bytes;
+  return false;
+#endif
+}
+
+/// `bytes` of fresh memory: a block of whole 2 MiB pages advised huge when maps_apart(bytes),
+/// else from operator new. Throws std::bad_alloc.
+inline void* allocate_large(std::size_t bytes)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if(maps_apart(bytes)) {
+    constexpr std::size_t huge = std::size_t(1) << 21;
+    const std::size_t size = (bytes + huge - 1) & ~(huge - 1);
+    if(size < bytes) throw std::bad_alloc();
+    // Map one huge page more and unmap what lies outside the first aligned block.
+    void* mapped = mmap(nullptr, size + huge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if(mapped == MAP_FAILED) throw std::bad_alloc();
+    const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(mapped);
+    const std::uintptr_t first = (begin + huge - 1) & ~(huge - 1);
+    if(first > begin) munmap(mapped, first - begin);
+    munmap(reinterpret_cast<void*>(first + size), begin + huge - first);
+    madvise(reinterpret_cast<void*>(first), size, MADV_HUGEPAGE);
+    return reinterpret_cast<void*>(first);
+  }
+#endif
+  return ::operator new(bytes);
+}
+
+/// Frees a block of allocate_large(bytes).
+inline void deallocate_large(void* p, std::size_t bytes) noexcept
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  if(maps_apart(bytes)) {
+    constexpr std::size_t huge = std::size_t(1) << 21;
+    munmap(p, (bytes + huge - 1) & ~(huge - 1));
+    return;
+  }
+#endif
+  ::operator delete(p);
 }
 
 /// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.

@@ -35,7 +35,7 @@ namespace internal {
 using Index = int;
 
 /// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose large
-/// blocks are advised huge pages (memory.h). The large arrays of a topology are written in full
+/// blocks are mappings of their own in huge pages (allocate_large()). The large arrays of a topology are written in full
 /// right after they are sized, in parallel under CGAL::Parallel_tag: zeroing them first would
 /// be a serial pass that also takes the page faults of every fresh page on one thread.
 template <typename T>
@@ -52,10 +52,10 @@ struct Large_array_allocator : std::allocator<T>
   {}
   T* allocate(std::size_t count)
   {
-    T* p = std::allocator<T>::allocate(count);
-    advise_huge_pages(p, count * sizeof(T));
-    return p;
+    if(count > std::size_t(-1) / sizeof(T)) throw std::bad_alloc();
+    return static_cast<T*>(allocate_large(count * sizeof(T)));
   }
+  void deallocate(T* p, std::size_t count) noexcept { deallocate_large(p, count * sizeof(T)); }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
   {
