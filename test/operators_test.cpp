@@ -647,6 +647,41 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   }
 }
 
+TEST(Operators, PencilsMoveWithoutCopyingTheirStorage)
+{
+  // Eigen 3.4's sparse matrix copies where it is moved; a pencil must not.
+  const Mesh m = jittered_sphere();
+  lapmesh::Laplacian_pencil p = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const Eigen::MatrixXd S = p.stiffness;
+  const Eigen::VectorXd M = p.mass;
+  const double* values = p.stiffness.valuePtr();
+  const double* mass = p.mass.data();
+  lapmesh::Laplacian_pencil q(std::move(p));
+  EXPECT_EQ(q.stiffness.valuePtr(), values);
+  EXPECT_EQ(q.mass.data(), mass);
+  EXPECT_EQ(p.stiffness.nonZeros(), 0);
+  EXPECT_EQ(p.mass.size(), 0);
+  lapmesh::Laplacian_pencil r = lapmesh::laplacian_pencil(m);
+  r = std::move(q);
+  EXPECT_EQ(r.stiffness.valuePtr(), values);
+  EXPECT_EQ(r.mass.data(), mass);
+  EXPECT_EQ((Eigen::MatrixXd(r.stiffness) - S).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(r.mass, M);
+  // A copy is a copy; a pencil built from (S, M) holds them.
+  const lapmesh::Laplacian_pencil c = r;
+  EXPECT_NE(c.stiffness.valuePtr(), values);
+  EXPECT_EQ((Eigen::MatrixXd(c.stiffness) - S).cwiseAbs().maxCoeff(), 0.0);
+  const lapmesh::Laplacian_pencil built(c.stiffness, c.mass);
+  EXPECT_EQ((Eigen::MatrixXd(built.stiffness) - S).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(built.mass, M);
+  // The stiffness matrices returned alone are the pencils' (swapped out of them).
+  EXPECT_EQ((Eigen::MatrixXd(lapmesh::cotangent_stiffness_matrix(m)) -
+             Eigen::MatrixXd(lapmesh::laplacian_pencil(m).stiffness)).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((Eigen::MatrixXd(lapmesh::uniform_stiffness_matrix(m)) -
+             Eigen::MatrixXd(lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform)).stiffness))
+              .cwiseAbs().maxCoeff(), 0.0);
+}
+
 #ifdef __linux__
 TEST(Operators, LargeTopologyArraysLieInMappingsOfTheirOwnInWholeHugePages)
 {

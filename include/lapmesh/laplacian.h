@@ -62,7 +62,7 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
                             internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
                             internal::choose_mollification(np));
   if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
-    out.stiffness = mesh.to_rows(out.stiffness);
+    mesh.to_rows(out.stiffness).swap(out.stiffness);
     out.mass = mesh.to_rows(out.mass, 0.0);
   }
   return out;
@@ -75,7 +75,9 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 Eigen::SparseMatrix<double> cotangent_stiffness_matrix(const TriangleMesh& tm,
                                                        const NamedParameters& np = CGAL::parameters::default_values())
 {
-  return laplacian_pencil<ConcurrencyTag>(tm, parameters::laplacian(Laplacian::cotangent, np)).stiffness;
+  Eigen::SparseMatrix<double> stiffness;  // swapped out of the pencil: returning the member would copy it
+  laplacian_pencil<ConcurrencyTag>(tm, parameters::laplacian(Laplacian::cotangent, np)).stiffness.swap(stiffness);
+  return stiffness;
 }
 
 /// @brief returns the uniform stiffness matrix W = A - D (graph adjacency minus degrees).
@@ -83,7 +85,9 @@ template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::De
 Eigen::SparseMatrix<double> uniform_stiffness_matrix(const TriangleMesh& tm,
                                                      const NamedParameters& np = CGAL::parameters::default_values())
 {
-  return laplacian_pencil(tm, parameters::laplacian(Laplacian::uniform, np)).stiffness;
+  Eigen::SparseMatrix<double> stiffness;  // as in cotangent_stiffness_matrix()
+  laplacian_pencil(tm, parameters::laplacian(Laplacian::uniform, np)).stiffness.swap(stiffness);
+  return stiffness;
 }
 
 /// @brief returns the vertex areas A_i (the lumped cotangent mass) of the kind chosen by

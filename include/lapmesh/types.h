@@ -24,6 +24,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -81,6 +82,32 @@ struct Laplacian_pencil
 {
   Eigen::SparseMatrix<double> stiffness;  ///< S: C (cotangent) or W (uniform); negative semidefinite
   Eigen::VectorXd mass;                   ///< diagonal of M: A_i (cotangent) or degree (uniform)
+
+  // Eigen 3.4's sparse matrix has no move operations (std::move copies it): a pencil moves by
+  // swapping its storage, so returning or assigning one never copies the matrix.
+
+  /// An empty pencil.
+  Laplacian_pencil() = default;
+  /// The pencil (S, M).
+  Laplacian_pencil(Eigen::SparseMatrix<double> S, Eigen::VectorXd M) : mass(std::move(M)) { stiffness.swap(S); }
+  /// A copy.
+  Laplacian_pencil(const Laplacian_pencil&) = default;
+  /// Copies `other`.
+  Laplacian_pencil& operator=(const Laplacian_pencil&) = default;
+  /// Takes the storage of `other`, which is left empty.
+  Laplacian_pencil(Laplacian_pencil&& other) noexcept { swap(other); }
+  /// Exchanges the storage with `other`, which is destroyed or reassigned next.
+  Laplacian_pencil& operator=(Laplacian_pencil&& other) noexcept
+  {
+    swap(other);
+    return *this;
+  }
+  /// Exchanges the matrices and masses of two pencils without copying them.
+  void swap(Laplacian_pencil& other) noexcept
+  {
+    stiffness.swap(other.stiffness);
+    mass.swap(other.mass);
+  }
 };
 
 /// The vertex area A_i, i.e. the diagonal of the lumped mass matrix (doc/conventions.md).

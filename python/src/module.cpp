@@ -93,11 +93,14 @@ py::array matrix_array(Eigen::MatrixXd A)  // column-major: a Fortran-ordered nu
 }
 
 // The arrays of a compressed symmetric matrix as CSR arrays, without a copy: its values, indices
-// and starts (int32, as Eigen stores them) share one owner, the matrix moved to the heap.
-std::tuple<py::array, py::array, py::array> csr_arrays(Eigen::SparseMatrix<double> S)
+// and starts (int32, as Eigen stores them) share one owner, a matrix on the heap that takes S's
+// storage by a swap (S is left empty): Eigen 3.4's sparse matrix has no move constructor, so
+// std::move would copy it.
+std::tuple<py::array, py::array, py::array> csr_arrays(Eigen::SparseMatrix<double>& S)
 {
   using StorageIndex = Eigen::SparseMatrix<double>::StorageIndex;
-  auto* held = new Eigen::SparseMatrix<double>(std::move(S));
+  auto* held = new Eigen::SparseMatrix<double>();
+  held->swap(S);
   py::capsule owner(held, [](void* p) { delete static_cast<Eigen::SparseMatrix<double>*>(p); });
   const py::ssize_t n = held->rows(), nnz = held->nonZeros();
   return {py::array_t<double>({nnz}, {py::ssize_t(sizeof(double))}, held->valuePtr(), owner),
@@ -501,7 +504,7 @@ PYBIND11_MODULE(_lapmesh, m)
         L = lapmesh_ops::laplacian(mesh, s);
       }
       const py::ssize_t n = L.stiffness.rows();
-      auto [data, indices, indptr] = csr_arrays(std::move(L.stiffness));
+      auto [data, indices, indptr] = csr_arrays(L.stiffness);
       return py::make_tuple(data, indices, indptr, n, vector_array(std::move(L.mass)));
     },
     py::arg("V"), py::arg("F") = py::none(), py::kw_only(), py::arg("laplacian") = default_name(curvature_defaults.laplacian),

@@ -10,13 +10,10 @@
 
 namespace lapmesh_ops {
 
-/// The pencil (S, M) of a Laplacian. S is symmetric, so its compressed columns, as assembled,
-/// are also its compressed rows (scipy's CSR layout): no transposition is needed.
-struct Csr_laplacian
-{
-  Eigen::SparseMatrix<double> stiffness;  ///< S, symmetric, negative semidefinite, compressed
-  Eigen::VectorXd mass;                   ///< the diagonal of M
-};
+/// The pencil (S, M) of a Laplacian, S compressed. S is symmetric, so its compressed columns, as
+/// assembled, are also its compressed rows (scipy's CSR layout): no transposition is needed. A
+/// lapmesh::Laplacian_pencil, which moves without copying its matrix.
+using Csr_laplacian = lapmesh::Laplacian_pencil;
 
 /// Assembles (S, M) for the Laplacian and vertex area of `settings`.
 Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings);

@@ -11,16 +11,13 @@ namespace lapmesh_ops {
 Csr_laplacian laplacian(const Mesh& mesh, const Curvature_settings& settings)
 {
   namespace LP = lapmesh::parameters;
-  lapmesh::Laplacian_pencil pencil = with_numbering(mesh, [&](const auto& np) {
+  Csr_laplacian pencil = with_numbering(mesh, [&](const auto& np) {
     return lapmesh::laplacian_pencil<CGAL::Parallel_if_available_tag>(
       mesh, LP::mollification_factor(settings.mollification,
                                      LP::vertex_area(settings.area, LP::laplacian(settings.laplacian, np))));
   });
-  Csr_laplacian out;
-  out.stiffness = std::move(pencil.stiffness);
-  out.stiffness.makeCompressed();
-  out.mass = std::move(pencil.mass);
-  return out;
+  pencil.stiffness.makeCompressed();
+  return pencil;
 }
 
 void write_mesh(const std::string& path, const lapmesh::Vertex_vectors& P, const Triangles& triangles)
