@@ -43,6 +43,15 @@ namespace internal {
 /// Blocks smaller than this are not advised: glibc's largest mmap threshold.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
+/// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
+constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;
+
+/// `x` rounded up to a whole number of huge pages.
+constexpr std::uintptr_t round_up_to_huge_pages(std::uintptr_t x) noexcept
+{
+  return (x + huge_page_bytes - 1) & ~std::uintptr_t(huge_page_bytes - 1);
+}
+
 /// Advises transparent huge pages for the whole 2 MiB pages inside [p, p + bytes), a block
 /// that has not been written yet. A hint only: nothing changes where the kernel or the
 /// platform does not support it.
@@ -50,9 +59,8 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(bytes < huge_page_advice_min_bytes || !huge_pages_enabled()) return;
-  constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
   const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t first = (begin + huge - 1) & ~(huge - 1), last = (begin + bytes) & ~(huge - 1);
+  const std::uintptr_t first = round_up_to_huge_pages(begin), last = (begin + bytes) & ~std::uintptr_t(huge_page_bytes - 1);
   if(last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
 #else
   (void)p;
@@ -85,16 +93,15 @@ inline void* allocate_large(std::size_t bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes)) {
-    constexpr std::size_t huge = std::size_t(1) << 21;
-    const std::size_t size = (bytes + huge - 1) & ~(huge - 1);
+    const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
     // Map one huge page more and unmap what lies outside the first aligned block.
-    void* mapped = mmap(nullptr, size + huge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if(mapped == MAP_FAILED) throw std::bad_alloc();
     const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(mapped);
-    const std::uintptr_t first = (begin + huge - 1) & ~(huge - 1);
+    const std::uintptr_t first = round_up_to_huge_pages(begin);
     if(first > begin) munmap(mapped, first - begin);
-    munmap(reinterpret_cast<void*>(first + size), begin + huge - first);
+    munmap(reinterpret_cast<void*>(first + size), begin + huge_page_bytes - first);
     madvise(reinterpret_cast<void*>(first), size, MADV_HUGEPAGE);
     return reinterpret_cast<void*>(first);
   }
@@ -107,8 +114,7 @@ inline void deallocate_large(void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes)) {
-    constexpr std::size_t huge = std::size_t(1) << 21;
-    munmap(p, (bytes + huge - 1) & ~(huge - 1));
+    munmap(p, round_up_to_huge_pages(bytes));
     return;
   }
 #endif

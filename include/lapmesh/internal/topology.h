@@ -35,9 +35,10 @@ namespace internal {
 using Index = int;
 
 /// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose large
-/// blocks are mappings of their own in huge pages (allocate_large()). The large arrays of a topology are written in full
-/// right after they are sized, in parallel under CGAL::Parallel_tag: zeroing them first would
-/// be a serial pass that also takes the page faults of every fresh page on one thread.
+/// blocks are mappings of their own in huge pages (allocate_large()). The large arrays of a
+/// topology are written in full right after they are sized, in parallel under
+/// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page
+/// faults of every fresh page on one thread.
 template <typename T>
 struct Large_array_allocator : std::allocator<T>
 {
