@@ -620,10 +620,20 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   const int offset = int(two.points.size());
   for(const auto& f : sphere.triangles) two.triangles.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
   two.points.insert(two.points.end(), sphere.points.begin(), sphere.points.end());
+  // Hubs of many corners: a closed double cone (hubs 0 and 41 around the ring 1..40) and an open
+  // fan (a boundary hub), whose neighbour lists are longer than a short sort's.
+  std::vector<int> double_cone, open_fan;
+  for(int i = 0; i < 40; ++i) {
+    const int j = 1 + i, k = 1 + (i + 1) % 40;
+    double_cone.insert(double_cone.end(), {0, j, k, 41, k, j});
+    if(i < 39) open_fan.insert(open_fan.end(), {0, j, j + 1});
+  }
   std::vector<std::pair<int, std::vector<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
                                                          flat(lapmesh::plane_patch(6)), flat(two),
                                                          // two triangles that share a vertex only
-                                                         {5, {0, 1, 2, 0, 3, 4}}};
+                                                         {5, {0, 1, 2, 0, 3, 4}},
+                                                         {42, double_cone},
+                                                         {41, open_fan}};
   for(const auto& [n, tri] : cases) {
     const auto full = build_topology(n, tri), corners = build_corner_topology(n, tri);
     EXPECT_TRUE(full.has_pattern());
@@ -637,9 +647,18 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
     EXPECT_EQ(corners.num_boundary_edges, full.num_boundary_edges);
   }
   EXPECT_GT(build_corner_topology(cases[2].first, cases[2].second).num_boundary_edges, 0);
+  const auto cone = build_corner_topology(42, double_cone), fan = build_corner_topology(41, open_fan);
+  EXPECT_EQ(cone.num_edges, 120);
+  EXPECT_EQ(cone.num_boundary_edges, 0);
+  EXPECT_EQ(fan.num_edges, 79);
+  EXPECT_EQ(fan.num_boundary_edges, 41);
+  EXPECT_TRUE(fan.on_boundary[0]);
+  auto cone_and_fin = double_cone;  // a third face on the hub's edge 0-1
+  cone_and_fin.insert(cone_and_fin.end(), {0, 1, 42});
   // Non-manifold (three faces on an edge; opposite orientations): the full topology, with the fan.
   for(const auto& [n, tri] : {std::make_pair(5, std::vector<int>{0, 1, 2, 1, 0, 3, 0, 1, 4}),
-                              std::make_pair(4, std::vector<int>{0, 1, 2, 0, 1, 3})}) {
+                              std::make_pair(4, std::vector<int>{0, 1, 2, 0, 1, 3}),
+                              std::make_pair(43, cone_and_fin)}) {
     const auto t = build_corner_topology(n, tri);
     EXPECT_TRUE(t.has_pattern());
     EXPECT_FALSE(t.manifold);

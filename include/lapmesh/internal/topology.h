@@ -276,6 +276,10 @@ inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Inde
 /// How many vertices ahead a pass over each vertex's corners prefetches their triangles.
 constexpr Index corner_prefetch_distance = 3;
 
+/// How many vertices a part of a parallel pass over the vertices takes: enough to amortise
+/// the part's set-up, few enough to balance the threads' load.
+constexpr Index vertices_per_part = 16384;
+
 /// Rows of the one-ring pattern built by one part of build_topology(), with slot numbers that
 /// start at zero. They are written into a slice of the topology's arrays reserved for the part
 /// (write_into()), which spares the copy of joining the parts, and the rows that do not fit in
@@ -510,7 +514,7 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
   t.on_boundary.assign(n, 0);
   // One thread (TBB limited to one, say) gains nothing from parts: a single part takes all rows.
   const bool in_parts = thread_count(parallel) > 1;
-  const Index rows_per_part = in_parts ? 16384 : std::max<Index>(n, 1);
+  const Index rows_per_part = in_parts ? vertices_per_part : std::max<Index>(n, 1);
   std::vector<Pattern_rows> parts(in_parts ? std::size_t((n + rows_per_part - 1) / rows_per_part) : 1);
   if(in_parts) {
     // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
@@ -586,51 +590,57 @@ inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index
   t.on_boundary.assign(n, 0);
   // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
   // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
-  // side of an edge) is what build_topology calls non-manifold. Each range of vertices marks
-  // the neighbours of its vertex in flags of its own (out: 1, in: 2) and clears them after,
-  // so no list is sorted; the counts of the ranges are summed in order.
+  // side of an edge) is what build_topology calls non-manifold. Each vertex sorts its few out-
+  // and in-neighbours and merges the two lists, so the parts share no state and are as many
+  // and as small as build_topology()'s; their counts are summed in order.
   struct Counts
   {
     Index edges = 0, boundary_edges = 0;
     bool manifold = true;
   };
-  std::vector<Counts> ranges(std::size_t(vertex_range_count(n, parallel)));
-  for_each_vertex_range(n, parallel, [&](Index range, Index first, Index last) {
-    Counts& counts = ranges[std::size_t(range)];
-    std::vector<unsigned char> seen(std::size_t(n), 0);
-    for(Index i = first; i < last && counts.manifold; ++i) {
+  std::vector<Counts> parts(std::size_t(n == 0 ? 0 : (n - 1) / vertices_per_part + 1));
+  for_each_part(n, vertices_per_part, parallel, [&](Index p, Index first, Index last) {
+    Counts counts;  // written to parts[p] at the end: neighbouring parts share cache lines
+    std::vector<Index> out, in;
+    for(Index i = first; i < last; ++i) {
       if(i + corner_prefetch_distance < last)
         for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k)
           prefetch(&tri[t.vertex_corners[k]]);
       const Index begin = t.corner_begin[i], end = t.corner_begin[i + 1];
+      out.resize(std::size_t(end - begin));
+      in.resize(std::size_t(end - begin));
+      for(Index k = begin; k < end; ++k) {
+        out[std::size_t(k - begin)] = tri[next_corner(t.vertex_corners[k])];
+        in[std::size_t(k - begin)] = tri[prev_corner(t.vertex_corners[k])];
+      }
+      std::sort(out.begin(), out.end());
+      std::sort(in.begin(), in.end());
+      if(std::adjacent_find(out.begin(), out.end()) != out.end() || std::adjacent_find(in.begin(), in.end()) != in.end()) {
+        counts.manifold = false;
+        break;
+      }
       Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
-      for(Index k = begin; k < end; ++k) {
-        const Index j = tri[next_corner(t.vertex_corners[k])];
-        counts.manifold = counts.manifold && !(seen[j] & 1);
-        seen[j] |= 1;
-        out_above += j > i;
-      }
-      for(Index k = begin; k < end; ++k) {
-        const Index j = tri[prev_corner(t.vertex_corners[k])];
-        counts.manifold = counts.manifold && !(seen[j] & 2);
-        seen[j] |= 2;
-        if(seen[j] & 1) {
-          ++both;
-          both_above += j > i;
+      for(std::size_t a = 0, b = 0; a < out.size() || b < in.size();) {
+        if(b == in.size() || (a < out.size() && out[a] < in[b])) {
+          out_above += out[a++] > i;
+        } else if(a == out.size() || in[b] < out[a]) {
+          in_only_above += in[b++] > i;
         } else {
-          in_only_above += j > i;
+          ++both;
+          const Index above = out[a] > i;
+          out_above += above;
+          both_above += above;
+          ++a;
+          ++b;
         }
-      }
-      for(Index k = begin; k < end; ++k) {
-        seen[tri[next_corner(t.vertex_corners[k])]] = 0;
-        seen[tri[prev_corner(t.vertex_corners[k])]] = 0;
       }
       if(both != end - begin) t.on_boundary[i] = 1;
       counts.edges += out_above + in_only_above;
       counts.boundary_edges += out_above - both_above + in_only_above;
     }
+    parts[std::size_t(p)] = counts;
   });
-  for(const Counts& counts : ranges) {
+  for(const Counts& counts : parts) {
     if(!counts.manifold) return build_topology(n, std::move(t.triangles), parallel);
     t.num_edges += counts.edges;
     t.num_boundary_edges += counts.boundary_edges;
