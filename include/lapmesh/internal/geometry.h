@@ -167,7 +167,6 @@ inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Eigen::V
 inline Positions gather_vertex_normals(const Mesh_topology& t, const Corner_geometry& g, bool parallel)
 {
   Positions N(t.num_vertices, 3);
-  advise_huge_pages(N);
   for_each_index(t.num_vertices, parallel, [&](Index v) {
     Eigen::Vector3d s = Eigen::Vector3d::Zero();
     for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
@@ -186,7 +185,6 @@ inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_g
                                           const Positions& P, bool parallel)
 {
   Positions out(t.num_vertices, 3);
-  advise_huge_pages(out);
   const Index* tri = t.triangles.data();
   const Index n = t.num_vertices;
   // The triangles and cotangents of a vertex's corners are fetched twice as far ahead as the
@@ -219,7 +217,6 @@ inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_g
 inline Positions uniform_laplacian_sums(const Mesh_topology& t, const Positions& P, bool parallel)
 {
   Positions out(t.num_vertices, 3);
-  advise_huge_pages(out);
   for_each_index(t.num_vertices, parallel, [&](Index i) {
     Eigen::Vector3d s = Eigen::Vector3d::Zero();
     for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k) s += P.row(t.inner[k]);  // diagonal included

@@ -40,10 +40,8 @@
 namespace lapmesh {
 namespace internal {
 
-/// Blocks smaller than this are not advised: they hold at most one whole huge page. Blocks
-/// under glibc's mmap threshold lie in its heap, which it trims at the end of a call, so that
-/// the next call would fault them in again one 4 KiB page at a time: they are advised too.
-constexpr std::size_t huge_page_advice_min_bytes = std::size_t(4) << 20;
+/// Blocks smaller than this are not advised: glibc's largest mmap threshold.
+constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
 /// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
 constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;

@@ -205,7 +205,6 @@ private:
       }
       m_report.above_stability_bound = m_s.lambda > m_report.stability_bound;
       m_next.resize(m_P.rows(), 3);
-      advise_huge_pages(m_next);
       return;
     }
     const auto t0 = Clock::now();
