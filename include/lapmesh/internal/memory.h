@@ -46,10 +46,16 @@ constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 /// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
 constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;
 
+/// `x` rounded down to a whole number of huge pages.
+constexpr std::uintptr_t round_down_to_huge_pages(std::uintptr_t x) noexcept
+{
+  return x & ~std::uintptr_t(huge_page_bytes - 1);
+}
+
 /// `x` rounded up to a whole number of huge pages.
 constexpr std::uintptr_t round_up_to_huge_pages(std::uintptr_t x) noexcept
 {
-  return (x + huge_page_bytes - 1) & ~std::uintptr_t(huge_page_bytes - 1);
+  return round_down_to_huge_pages(x + huge_page_bytes - 1);
 }
 
 /// Advises transparent huge pages for the whole 2 MiB pages inside [p, p + bytes), a block
@@ -60,7 +66,7 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(bytes < huge_page_advice_min_bytes || !huge_pages_enabled()) return;
   const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t first = round_up_to_huge_pages(begin), last = (begin + bytes) & ~std::uintptr_t(huge_page_bytes - 1);
+  const std::uintptr_t first = round_up_to_huge_pages(begin), last = round_down_to_huge_pages(begin + bytes);
   if(last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
 #else
   (void)p;

@@ -50,6 +50,13 @@ void for_each_index(IndexType n, bool parallel, const Body& body, IndexType grai
   for(IndexType i = 0; i < n; ++i) body(i);
 }
 
+/// How many parts of `part_size` for_each_part() splits [0, n) into.
+template <typename IndexType>
+IndexType part_count(IndexType n, IndexType part_size)
+{
+  return n == 0 ? 0 : (n - 1) / part_size + 1;
+}
+
 /// Splits [0, n) into consecutive parts of `part_size` (the last one shorter) and calls
 /// body(part, begin, end) for each; in parallel when `parallel` and TBB is available. The
 /// split depends on n and part_size only, so a body that keeps per-part results and merges
@@ -57,7 +64,7 @@ void for_each_index(IndexType n, bool parallel, const Body& body, IndexType grai
 template <typename IndexType, typename Body>
 void for_each_part(IndexType n, IndexType part_size, bool parallel, const Body& body)
 {
-  const IndexType parts = n == 0 ? 0 : (n - 1) / part_size + 1;
+  const IndexType parts = part_count(n, part_size);
   for_each_index(parts, parallel && parts > 1, [&](IndexType p) {
     const IndexType begin = p * part_size;
     body(p, begin, n - begin < part_size ? n : begin + part_size);

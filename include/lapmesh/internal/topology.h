@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <array>
+#include <iterator>
 #include <memory>
 #include <new>
 #include <type_traits>
@@ -515,7 +516,7 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
   // One thread (TBB limited to one, say) gains nothing from parts: a single part takes all rows.
   const bool in_parts = thread_count(parallel) > 1;
   const Index rows_per_part = in_parts ? vertices_per_part : std::max<Index>(n, 1);
-  std::vector<Pattern_rows> parts(in_parts ? std::size_t((n + rows_per_part - 1) / rows_per_part) : 1);
+  std::vector<Pattern_rows> parts(in_parts ? std::size_t(part_count(n, rows_per_part)) : 1);
   if(in_parts) {
     // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
     // corners + 1 slots: each part writes straight into its slice of the pattern at that
@@ -591,17 +592,18 @@ inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index
   // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
   // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
   // side of an edge) is what build_topology calls non-manifold. Each vertex sorts its few out-
-  // and in-neighbours and merges the two lists, so the parts share no state and are as many
-  // and as small as build_topology()'s; their counts are summed in order.
+  // and in-neighbours and intersects the two lists, so the parts share no state and are as many
+  // and as small as build_topology()'s; their counts are summed in order. Each edge i-j is
+  // counted at its lower end i, once whether it has one halfedge or two.
   struct Counts
   {
     Index edges = 0, boundary_edges = 0;
     bool manifold = true;
   };
-  std::vector<Counts> parts(std::size_t(n == 0 ? 0 : (n - 1) / vertices_per_part + 1));
+  std::vector<Counts> parts(std::size_t(part_count(n, vertices_per_part)));
   for_each_part(n, vertices_per_part, parallel, [&](Index p, Index first, Index last) {
     Counts counts;  // written to parts[p] at the end: neighbouring parts share cache lines
-    std::vector<Index> out, in;
+    std::vector<Index> out, in, shared;
     for(Index i = first; i < last; ++i) {
       if(i + corner_prefetch_distance < last)
         for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k)
@@ -619,24 +621,15 @@ inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index
         counts.manifold = false;
         break;
       }
-      Index out_above = 0, both = 0, both_above = 0, in_only_above = 0;
-      for(std::size_t a = 0, b = 0; a < out.size() || b < in.size();) {
-        if(b == in.size() || (a < out.size() && out[a] < in[b])) {
-          out_above += out[a++] > i;
-        } else if(a == out.size() || in[b] < out[a]) {
-          in_only_above += in[b++] > i;
-        } else {
-          ++both;
-          const Index above = out[a] > i;
-          out_above += above;
-          both_above += above;
-          ++a;
-          ++b;
-        }
-      }
-      if(both != end - begin) t.on_boundary[i] = 1;
-      counts.edges += out_above + in_only_above;
-      counts.boundary_edges += out_above - both_above + in_only_above;
+      shared.clear();
+      std::set_intersection(out.begin(), out.end(), in.begin(), in.end(), std::back_inserter(shared));
+      const auto above_i = [i](const std::vector<Index>& sorted) {
+        return Index(sorted.end() - std::upper_bound(sorted.begin(), sorted.end(), i));
+      };
+      const Index out_above = above_i(out), in_above = above_i(in), shared_above = above_i(shared);
+      if(Index(shared.size()) != end - begin) t.on_boundary[i] = 1;
+      counts.edges += out_above + in_above - shared_above;
+      counts.boundary_edges += out_above + in_above - 2 * shared_above;
     }
     parts[std::size_t(p)] = counts;
   });
