@@ -15,8 +15,11 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <string>
+#include <tuple>
 
 #ifdef CGAL_LINKED_WITH_TBB
+#include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 #endif
 
@@ -421,9 +424,10 @@ void expect_same_topology(const lapmesh::internal::Mesh_topology& a, const lapme
 
 // The parallel topology is built in parts (rows) and vertex ranges (one per thread) that are
 // joined afterwards: it must equal the serial one field by field, on meshes large enough for
-// several of each, closed, with a boundary, with one hole, with non-manifold edges and with a
-// face given twice. It runs in an arena of 8 threads whatever the machine (one thread takes the
-// serial path).
+// several of each, closed, with a boundary, with one hole, with non-manifold edges, with a
+// face given twice and with its vertices numbered at random (each range's corners spread over
+// all faces). It runs with 3 threads (each range reads every corner) and 8 (4 ranges, the
+// corners sorted into them first) whatever the machine (one thread takes the serial path).
 TEST(Operators, ParallelTopologyEqualsTheSerialOne)
 {
   using lapmesh::internal::build_corner_topology;
@@ -441,7 +445,13 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   hole.second.erase(hole.second.begin() + 3 * middle, hole.second.begin() + 3 * middle + 3);
   auto twice = torus;
   twice.second.insert(twice.second.end(), torus.second.begin() + 3 * middle, torus.second.begin() + 3 * middle + 3);
-  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins, hole, twice};
+  auto shuffled = torus;
+  std::vector<int> label(std::size_t(torus.first));
+  std::iota(label.begin(), label.end(), 0);
+  std::shuffle(label.begin(), label.end(), std::mt19937(5));
+  for(int& v : shuffled.second) v = label[std::size_t(v)];
+  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins, hole, twice,
+                                                               shuffled};
   auto check = [&] {
     for(const auto& [n, tri] : cases) {
       ASSERT_GT(n, 4 * 16384);
@@ -451,7 +461,15 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
     }
   };
 #ifdef CGAL_LINKED_WITH_TBB
-  tbb::task_arena(8).execute(check);
+  for(int threads : {3, 8}) {
+    tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+    tbb::task_arena(threads).execute([&] {
+      const int ranges = lapmesh::internal::vertex_range_count(torus.first, true);
+      EXPECT_EQ(ranges, threads == 3 ? 3 : 4);
+      EXPECT_EQ(ranges >= lapmesh::internal::min_ranges_sorted_into, threads == 8);
+      check();
+    });
+  }
 #else
   FAIL() << "lapmesh was built without TBB (libtbb-dev): its parallel path is not tested";
 #endif
@@ -462,6 +480,46 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   EXPECT_FALSE(build_corner_topology(fins.first, fins.second, true).manifold);
   EXPECT_EQ(build_topology(hole.first, hole.second, true).num_boundary_edges, 3);
   EXPECT_FALSE(build_topology(twice.first, twice.second, true).manifold);
+}
+
+// In parallel the faces are checked, and the vertices in no face found, by range or by chunk:
+// the error must still name the first bad face or vertex, as the serial build does.
+TEST(Operators, ParallelTopologyNamesTheFirstBadElement)
+{
+  using lapmesh::internal::build_topology;
+  const auto [n, torus] = flat(lapmesh::torus(400, 200));
+  auto message = [](int vertices, const std::vector<int>& tri, bool parallel) -> std::string {
+    try {
+      build_topology(vertices, tri, parallel);
+    } catch(const lapmesh::Mesh_error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  auto out_of_range = torus, repeated = torus, unused = torus;
+  out_of_range[3 * 50000 + 1] = n;
+  out_of_range[3 * 100000 + 2] = -1;
+  repeated[3 * 70000 + 2] = repeated[3 * 70000];
+  repeated[3 * 90000] = n + 7;
+  for(int& v : unused) v += (v >= 30000) + (v >= 60000);  // vertices 30000 and 60001 in no face
+  const std::vector<std::tuple<int, std::vector<int>, std::string>> cases = {
+    {n, out_of_range, "face 50000 has a vertex index out of range [0, " + std::to_string(n) + ")"},
+    {n, repeated, "face 70000 uses the same vertex twice"},
+    {n + 2, unused, "vertex 30000 is in no face"}};
+#ifdef CGAL_LINKED_WITH_TBB
+  for(const auto& bad : cases) {
+    const int vertices = std::get<0>(bad);
+    const std::vector<int>& tri = std::get<1>(bad);
+    const std::string& expected = std::get<2>(bad);
+    EXPECT_EQ(message(vertices, tri, false), expected);
+    for(int threads : {3, 8}) {
+      tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+      tbb::task_arena(threads).execute([&] { EXPECT_EQ(message(vertices, tri, true), expected) << threads; });
+    }
+  }
+#else
+  FAIL() << "lapmesh was built without TBB (libtbb-dev): its parallel path is not tested";
+#endif
 }
 
 // An error from the topology's numbering names the input's vertex (its row): the whole number only.

@@ -331,9 +331,9 @@ template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
                                           Topology_detail detail = Topology_detail::pattern, bool parallel = false)
 {
-  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles, Topology_array<Index>&& counts) {
-    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(counts))
-                                              : build_corner_topology(n, std::move(triangles), parallel, std::move(counts));
+  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles, Corner_incidence&& incidence) {
+    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(incidence))
+                                              : build_corner_topology(n, std::move(triangles), parallel, std::move(incidence));
   };
   Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np, parallel);
   Extracted_mesh<TriangleMesh> out;
@@ -341,10 +341,10 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   out.num_rows = n;
   out.vertex_rows = std::move(arrays.vertex_rows);
   if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
-  // The corner counts that the topology starts from also tell which rows are in no face.
-  Topology_array<Index> counts = count_vertex_corners(n, arrays.triangles, parallel);
-  if(std::all_of(counts.begin() + 1, counts.end(), [](Index corners) { return corners > 0; })) {
-    out.topology = topology(n, std::move(arrays.triangles), std::move(counts));
+  // The corner lists that the topology starts from also tell which rows are in no face.
+  Corner_incidence incidence = sort_corners_by_vertex(n, arrays.triangles, parallel);
+  if(incidence.first_vertex_in_no_face(parallel) < 0) {
+    out.topology = topology(n, std::move(arrays.triangles), std::move(incidence));
     out.positions = std::move(arrays.positions);
     out.vertices = std::move(arrays.vertices);
     return out;
@@ -352,7 +352,8 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   std::vector<Index> topology_vertex(n, -1);
   Index used = 0;
   for(Index r = 0; r < n; ++r)
-    if(counts[std::size_t(r) + 1] > 0) topology_vertex[r] = used++;
+    if(incidence.corner_begin[std::size_t(r) + 1] > incidence.corner_begin[std::size_t(r)]) topology_vertex[r] = used++;
+  incidence = Corner_incidence();
   // Rows in no face are left out of the computation.
   out.row.resize(used);
   out.positions.resize(used, 3);

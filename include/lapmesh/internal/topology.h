@@ -187,90 +187,217 @@ struct Mesh_topology
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
 };
 
-/// Throws Mesh_error for the first face of `tri` with a vertex index out of [0, n) or a
-/// repeated vertex.
-inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool parallel)
+/// True when the face with the vertices t[0], t[1], t[2] has its indices in [0, n), all different.
+inline bool is_valid_face(Index n, const Index* t)
 {
-  const Index m = static_cast<Index>(tri.size() / 3);
-  const auto valid = [&](Index f) {
-    const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
-    return a >= 0 && b >= 0 && c >= 0 && a < n && b < n && c < n && a != b && b != c && a != c;
-  };
-  First_index<Index> invalid;
-  for_each_index(m, parallel, [&](Index f) {
-    if(!valid(f)) invalid.record(f);
-  });
-  if(invalid.empty()) return;
-  const Index f = invalid.get(), a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+  return t[0] >= 0 && t[1] >= 0 && t[2] >= 0 && t[0] < n && t[1] < n && t[2] < n && t[0] != t[1] && t[1] != t[2] &&
+         t[0] != t[2];
+}
+
+/// Throws the Mesh_error of face f of `tri`, which is not valid (is_valid_face()).
+[[noreturn]] inline void throw_invalid_face(Index n, const std::vector<Index>& tri, Index f)
+{
+  const Index a = tri[3 * std::size_t(f)], b = tri[3 * std::size_t(f) + 1], c = tri[3 * std::size_t(f) + 2];
   if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
     throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " + std::to_string(n) + ")",
                      Mesh_error::Element::face, f);
   throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
 }
 
-/// How many ranges for_each_vertex_range() splits n vertices into: one serially, one per
-/// thread (of at least 16384 vertices) in parallel.
+/// Throws Mesh_error for the first face of `tri` with a vertex index out of [0, n) or a
+/// repeated vertex.
+inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool parallel)
+{
+  First_index<Index> invalid;
+  for_each_index(Index(tri.size() / 3), parallel, [&](Index f) {
+    if(!is_valid_face(n, tri.data() + 3 * std::size_t(f))) invalid.record(f);
+  });
+  if(!invalid.empty()) throw_invalid_face(n, tri, invalid.get());
+}
+
+/// How many ranges of vertices sort_corners_by_vertex() splits the work into: one serially,
+/// one per thread (of at least 16384 vertices) in parallel.
 inline Index vertex_range_count(Index n, bool parallel)
 {
   return std::max(1, std::min(thread_count(parallel), n / 16384));
 }
 
-/// Calls body(range, first, last) for the consecutive ranges of the vertices 0..n-1.
-template <typename Body>
-void for_each_vertex_range(Index n, bool parallel, const Body& body)
-{
-  const Index ranges = vertex_range_count(n, parallel);
-  for_each_part(ranges, Index(1), ranges > 1, [&](Index r, Index, Index) {
-    body(r, Index(std::int64_t(n) * r / ranges), Index(std::int64_t(n) * (r + 1) / ranges));
-  });
-}
+/// From how many ranges on sort_corners_by_vertex() sorts the corners into the ranges first.
+/// Reading every corner costs each range a pass over all of them; the sort costs about four
+/// passes in all, shared by the threads, and the faults of an array of (vertex, corner) pairs.
+constexpr Index min_ranges_sorted_into = 4;
 
-/// The number of corners of each vertex v at counts[v + 1] (counts[0] = 0), after checking the
-/// faces (require_valid_faces()): the first step of build_corner_incidence(), which
-/// extract_mesh() takes on its own to find the vertices in no face. In parallel each thread
-/// takes a range of vertices and streams over all corners for theirs.
-inline Topology_array<Index> count_vertex_corners(Index n, const std::vector<Index>& tri, bool parallel)
+/// Each vertex's incident corners in ascending order: those of vertex v are
+/// vertex_corners[corner_begin[v] .. corner_begin[v + 1]); a vertex in no face has none.
+struct Corner_incidence
 {
-  require_valid_faces(n, tri, parallel);
-  const Index corners = static_cast<Index>(tri.size());
-  Topology_array<Index> counts;
-  counts.assign(std::size_t(n) + 1, 0);
-  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
-    for(Index c = 0; c < corners; ++c)
-      if(tri[c] >= first && tri[c] < last) ++counts[tri[c] + 1];
+  Topology_array<Index> corner_begin;
+  Topology_array<Index> vertex_corners;
+
+  bool empty() const { return corner_begin.empty(); }
+  /// The first vertex with no corner, or -1.
+  Index first_vertex_in_no_face(bool parallel) const
+  {
+    First_index<Index> in_no_face;
+    const Index n = Index(corner_begin.size()) - 1;
+    for_each_index(n, parallel, [&](Index v) {
+      if(corner_begin[v + 1] == corner_begin[v]) in_no_face.record(v);
+    }, Index(16384));
+    return in_no_face.empty() ? -1 : in_no_face.get();
+  }
+};
+
+/// Each vertex's incident corners, after checking the faces (require_valid_faces()): a counting
+/// sort. Each vertex's count is kept at corner_begin[v + 1] and turned, by an exclusive prefix
+/// sum in place, into the cursor of its list, which ends as its end.
+///
+/// In parallel each thread counts, sums and fills the lists of one range of vertices, and the
+/// ranges' corners start where the ranges before them end. A range finds its corners by
+/// reading all of them, or, from min_ranges_sorted_into ranges on, from its share of an array
+/// of (vertex, corner) pairs sorted into the ranges beforehand: each thread histograms a chunk
+/// of the faces by range and, after a prefix sum over (range, chunk), scatters its chunk's
+/// pairs, so that each range's pairs are in ascending corner order.
+inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>& tri, bool parallel)
+{
+  Corner_incidence out;
+  const std::size_t corners = tri.size(), faces = corners / 3;
+  const Index ranges = vertex_range_count(n, parallel);
+  const bool sorted_into_ranges = ranges >= min_ranges_sorted_into;
+  if(!sorted_into_ranges) require_valid_faces(n, tri, parallel);
+  out.corner_begin.resize(std::size_t(n) + 1);
+  out.corner_begin[0] = 0;
+  out.vertex_corners.resize(corners);
+  Index* const cursor = out.corner_begin.data() + 1;
+  // Counts of the vertices first .. last - 1 into cursors, their corners starting at `start`.
+  const auto counts_to_cursors = [cursor](Index first, Index last, std::size_t start) {
+    for(Index v = first; v < last; ++v) {
+      const Index count = cursor[v];
+      cursor[v] = Index(start);
+      start += std::size_t(count);
+    }
+  };
+  if(ranges == 1) {
+    std::fill(cursor, cursor + n, Index(0));
+    for(Index v : tri) ++cursor[v];
+    counts_to_cursors(0, n, 0);
+    for(std::size_t c = 0; c < corners; ++c) out.vertex_corners[std::size_t(cursor[tri[c]]++)] = Index(c);
+    return out;
+  }
+  // range_of(v) = floor(v * scale / 2^32) is monotone and below `ranges` for v < n, and needs no
+  // division; range r's first vertex is the smallest v with v * scale >= r * 2^32.
+  const std::uint64_t scale = (std::uint64_t(ranges) << 32) / std::uint64_t(n);
+  const auto range_of = [scale](Index v) { return std::size_t((std::uint64_t(v) * scale) >> 32); };
+  const std::size_t width = std::size_t(ranges);
+  std::vector<Index> range_first(width + 1, n);
+  for(std::size_t r = 0; r < width; ++r)
+    range_first[r] = Index(std::min<std::uint64_t>(std::uint64_t(n), ((std::uint64_t(r) << 32) + scale - 1) / scale));
+  // Range r's corners are vertex_corners[range_start[r] .. range_start[r + 1]).
+  std::vector<std::size_t> range_start(width + 1, 0);
+  Topology_array<std::array<Index, 2>> pairs;  // (vertex, corner), sorted into ranges at range_start
+  if(sorted_into_ranges) {
+    // As many chunks of faces as ranges; offsets[k * width + r]: where chunk k's pairs of range r
+    // go. A face whose corners are in one range, as most are, moves its range's counter once.
+    const auto chunk_begin = [&](Index k) { return faces * std::size_t(k) / width; };
+    std::vector<std::size_t> offsets(width * width);
+    First_index<Index> invalid;
+    for_each_part(ranges, Index(1), true, [&](Index k, Index, Index) {
+      std::vector<std::size_t> histogram(width, 0);
+      for(std::size_t f = chunk_begin(k), end = chunk_begin(k + 1); f < end; ++f) {
+        const Index* t = tri.data() + 3 * f;
+        if(!is_valid_face(n, t)) {
+          invalid.record(Index(f));
+          break;
+        }
+        const std::size_t r0 = range_of(t[0]), r1 = range_of(t[1]), r2 = range_of(t[2]);
+        if(r0 == r1 && r1 == r2) {
+          histogram[r0] += 3;
+        } else {
+          ++histogram[r0];
+          ++histogram[r1];
+          ++histogram[r2];
+        }
+      }
+      std::copy(histogram.begin(), histogram.end(), offsets.begin() + std::ptrdiff_t(std::size_t(k) * width));
+    });
+    if(!invalid.empty()) throw_invalid_face(n, tri, invalid.get());
+    std::size_t total = 0;
+    for(std::size_t r = 0; r < width; ++r) {
+      range_start[r] = total;
+      for(std::size_t k = 0; k < width; ++k) {
+        const std::size_t count = offsets[k * width + r];
+        offsets[k * width + r] = total;
+        total += count;
+      }
+    }
+    range_start[width] = total;
+    pairs.resize(corners);
+    for_each_part(ranges, Index(1), true, [&](Index k, Index, Index) {
+      std::size_t* next = offsets.data() + std::size_t(k) * width;
+      for(std::size_t f = chunk_begin(k), end = chunk_begin(k + 1); f < end; ++f) {
+        const Index* t = tri.data() + 3 * f;
+        const Index c = Index(3 * f);
+        const std::size_t r0 = range_of(t[0]), r1 = range_of(t[1]), r2 = range_of(t[2]);
+        if(r0 == r1 && r1 == r2) {
+          std::array<Index, 2>* p = pairs.data() + next[r0];
+          next[r0] += 3;
+          p[0] = {t[0], c};
+          p[1] = {t[1], c + 1};
+          p[2] = {t[2], c + 2};
+        } else {
+          pairs[next[r0]++] = {t[0], c};
+          pairs[next[r1]++] = {t[1], c + 1};
+          pairs[next[r2]++] = {t[2], c + 2};
+        }
+      }
+    });
+  }
+  // Calls body(v, c) for the corners c of range r's vertices v, in ascending order: from the
+  // range's pairs, or by reading every corner.
+  const auto for_each_corner_of_range = [&](Index r, const auto& body) {
+    if(sorted_into_ranges) {
+      for(std::size_t e = range_start[std::size_t(r)], end = range_start[std::size_t(r) + 1]; e < end; ++e)
+        body(pairs[e][0], pairs[e][1]);
+      return;
+    }
+    const Index first = range_first[std::size_t(r)], last = range_first[std::size_t(r) + 1];
+    for(std::size_t c = 0; c < corners; ++c)
+      if(tri[c] >= first && tri[c] < last) body(tri[c], Index(c));
+  };
+  std::vector<std::size_t> range_count(width);
+  for_each_part(ranges, Index(1), true, [&](Index r, Index, Index) {
+    std::fill(cursor + range_first[std::size_t(r)], cursor + range_first[std::size_t(r) + 1], Index(0));
+    std::size_t count = 0;
+    for_each_corner_of_range(r, [&](Index v, Index) {
+      ++cursor[v];
+      ++count;
+    });
+    range_count[std::size_t(r)] = count;
   });
-  return counts;
+  for(std::size_t r = 0; r < width; ++r) range_start[r + 1] = range_start[r] + range_count[r];
+  for_each_part(ranges, Index(1), true, [&](Index r, Index, Index) {
+    counts_to_cursors(range_first[std::size_t(r)], range_first[std::size_t(r) + 1], range_start[std::size_t(r)]);
+    for_each_corner_of_range(r, [&](Index v, Index c) { out.vertex_corners[std::size_t(cursor[v]++)] = c; });
+  });
+  return out;
 }
 
 /// The part of every topology that a pass over the corners needs: the triangles, checked, and
-/// each vertex's incident corners, by a counting sort (ascending corner index per vertex).
-/// Throws Mesh_error for an index out of range, a face with a repeated vertex and a vertex in
-/// no face. `corner_counts`: count_vertex_corners() of the same triangles when the caller has
-/// it, or empty. In parallel each thread takes a range of vertices and streams over all corners
-/// for theirs: the writes stay in its range, with no atomic counter shared between threads, and
-/// the order is the serial one.
+/// each vertex's incident corners (sort_corners_by_vertex()). Throws Mesh_error for an index out
+/// of range, a face with a repeated vertex and a vertex in no face (the first of each, as
+/// serially). `incidence`: sort_corners_by_vertex() of the same triangles when the caller has
+/// it, or empty.
 inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
-                                            Topology_array<Index> corner_counts = {})
+                                            Corner_incidence incidence = {})
 {
   Mesh_topology t;
   t.num_vertices = num_vertices;
   t.num_faces = static_cast<Index>(triangles.size() / 3);
   t.triangles = std::move(triangles);
-  const Index n = num_vertices, corners = 3 * t.num_faces;
-  const std::vector<Index>& tri = t.triangles;
-  t.corner_begin = corner_counts.empty() ? count_vertex_corners(n, tri, parallel) : std::move(corner_counts);
-  for(Index v = 0; v < n; ++v) {
-    if(t.corner_begin[v + 1] == 0)
-      throw Mesh_error("vertex " + std::to_string(v) + " is in no face",
-                       Mesh_error::Element::vertex, v);
-    t.corner_begin[v + 1] += t.corner_begin[v];
-  }
-  t.vertex_corners.resize(std::size_t(corners));
-  std::vector<Index> fill(t.corner_begin.begin(), t.corner_begin.end() - 1);
-  for_each_vertex_range(n, parallel, [&](Index, Index first, Index last) {
-    for(Index c = 0; c < corners; ++c)
-      if(tri[c] >= first && tri[c] < last) t.vertex_corners[fill[tri[c]]++] = c;
-  });
+  if(incidence.empty()) incidence = sort_corners_by_vertex(num_vertices, t.triangles, parallel);
+  const Index v = incidence.first_vertex_in_no_face(parallel);
+  if(v >= 0) throw Mesh_error("vertex " + std::to_string(v) + " is in no face", Mesh_error::Element::vertex, v);
+  t.corner_begin = std::move(incidence.corner_begin);
+  t.vertex_corners = std::move(incidence.vertex_corners);
   return t;
 }
 
@@ -505,9 +632,9 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
 /// (`manifold` false, the edge in `fan_slot`). In parallel (TBB) the rows are built in parts
 /// and joined in order: the result equals the serial one.
 inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
-                                   Topology_array<Index> corner_counts = {})
+                                   Corner_incidence incidence = {})
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(corner_counts));
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(incidence));
   const Index n = num_vertices;
   t.outer.resize(n + 1);
   t.outer[0] = 0;
@@ -583,9 +710,9 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
 /// A non-manifold mesh gets the full topology, whose edge fans name the edge in
 /// require_manifold()'s message.
 inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
-                                          Topology_array<Index> corner_counts = {})
+                                          Corner_incidence incidence = {})
 {
-  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(corner_counts));
+  Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(incidence));
   const Index n = num_vertices;
   const std::vector<Index>& tri = t.triangles;
   t.on_boundary.assign(n, 0);
