@@ -254,9 +254,9 @@ struct Corner_incidence
 /// In parallel each thread counts, sums and fills the lists of one range of vertices, and the
 /// ranges' corners start where the ranges before them end. A range finds its corners by
 /// reading all of them, or, from min_ranges_sorted_into ranges on, from its share of an array
-/// of (vertex, corner) pairs sorted into the ranges beforehand: each thread histograms a chunk
-/// of the faces by range and, after a prefix sum over (range, chunk), scatters its chunk's
-/// pairs, so that each range's pairs are in ascending corner order.
+/// of (vertex, corner) pairs sorted into the ranges beforehand: each thread checks a chunk of
+/// the faces and counts its corners per range and, after a prefix sum over (range, chunk),
+/// scatters the chunk's pairs, so that each range's pairs are in ascending corner order.
 inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>& tri, bool parallel)
 {
   Corner_incidence out;
