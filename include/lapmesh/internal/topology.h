@@ -187,32 +187,25 @@ struct Mesh_topology
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
 };
 
-/// True when the face with the vertices t[0], t[1], t[2] has its indices in [0, n), all different.
-inline bool is_valid_face(Index n, const Index* t)
-{
-  return t[0] >= 0 && t[1] >= 0 && t[2] >= 0 && t[0] < n && t[1] < n && t[2] < n && t[0] != t[1] && t[1] != t[2] &&
-         t[0] != t[2];
-}
-
-/// Throws the Mesh_error of face f of `tri`, which is not valid (is_valid_face()).
-[[noreturn]] inline void throw_invalid_face(Index n, const std::vector<Index>& tri, Index f)
-{
-  const Index a = tri[3 * std::size_t(f)], b = tri[3 * std::size_t(f) + 1], c = tri[3 * std::size_t(f) + 2];
-  if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
-    throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " + std::to_string(n) + ")",
-                     Mesh_error::Element::face, f);
-  throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
-}
-
 /// Throws Mesh_error for the first face of `tri` with a vertex index out of [0, n) or a
 /// repeated vertex.
 inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool parallel)
 {
+  const Index m = static_cast<Index>(tri.size() / 3);
+  const auto valid = [&](Index f) {
+    const Index a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+    return a >= 0 && b >= 0 && c >= 0 && a < n && b < n && c < n && a != b && b != c && a != c;
+  };
   First_index<Index> invalid;
-  for_each_index(Index(tri.size() / 3), parallel, [&](Index f) {
-    if(!is_valid_face(n, tri.data() + 3 * std::size_t(f))) invalid.record(f);
+  for_each_index(m, parallel, [&](Index f) {
+    if(!valid(f)) invalid.record(f);
   });
-  if(!invalid.empty()) throw_invalid_face(n, tri, invalid.get());
+  if(invalid.empty()) return;
+  const Index f = invalid.get(), a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+  if(a < 0 || b < 0 || c < 0 || a >= n || b >= n || c >= n)
+    throw Mesh_error("face " + std::to_string(f) + " has a vertex index out of range [0, " + std::to_string(n) + ")",
+                     Mesh_error::Element::face, f);
+  throw Mesh_error("face " + std::to_string(f) + " uses the same vertex twice", Mesh_error::Element::face, f);
 }
 
 /// How many ranges of vertices sort_corners_by_vertex() splits the work into: one serially,
@@ -254,16 +247,16 @@ struct Corner_incidence
 /// In parallel each thread counts, sums and fills the lists of one range of vertices, and the
 /// ranges' corners start where the ranges before them end. A range finds its corners by
 /// reading all of them, or, from min_ranges_sorted_into ranges on, from its share of an array
-/// of (vertex, corner) pairs sorted into the ranges beforehand: each thread checks a chunk of
-/// the faces and counts its corners per range and, after a prefix sum over (range, chunk),
-/// scatters the chunk's pairs, so that each range's pairs are in ascending corner order.
+/// of (vertex, corner) pairs sorted into the ranges beforehand: each thread counts the corners
+/// of a chunk of the faces per range and, after a prefix sum over (range, chunk), scatters the
+/// chunk's pairs, so that each range's pairs are in ascending corner order.
 inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>& tri, bool parallel)
 {
   Corner_incidence out;
   const std::size_t corners = tri.size(), faces = corners / 3;
   const Index ranges = vertex_range_count(n, parallel);
   const bool sorted_into_ranges = ranges >= min_ranges_sorted_into;
-  if(!sorted_into_ranges) require_valid_faces(n, tri, parallel);
+  require_valid_faces(n, tri, parallel);
   out.corner_begin.resize(std::size_t(n) + 1);
   out.corner_begin[0] = 0;
   out.vertex_corners.resize(corners);
@@ -299,15 +292,10 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
     // go. A face whose corners are in one range, as most are, moves its range's counter once.
     const auto chunk_begin = [&](Index k) { return faces * std::size_t(k) / width; };
     std::vector<std::size_t> offsets(width * width);
-    First_index<Index> invalid;
     for_each_part(ranges, Index(1), true, [&](Index k, Index, Index) {
       std::vector<std::size_t> histogram(width, 0);
       for(std::size_t f = chunk_begin(k), end = chunk_begin(k + 1); f < end; ++f) {
         const Index* t = tri.data() + 3 * f;
-        if(!is_valid_face(n, t)) {
-          invalid.record(Index(f));
-          break;
-        }
         const std::size_t r0 = range_of(t[0]), r1 = range_of(t[1]), r2 = range_of(t[2]);
         if(r0 == r1 && r1 == r2) {
           histogram[r0] += 3;
@@ -319,7 +307,6 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
       }
       std::copy(histogram.begin(), histogram.end(), offsets.begin() + std::ptrdiff_t(std::size_t(k) * width));
     });
-    if(!invalid.empty()) throw_invalid_face(n, tri, invalid.get());
     std::size_t total = 0;
     for(std::size_t r = 0; r < width; ++r) {
       range_start[r] = total;
@@ -373,6 +360,7 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
     });
     range_count[std::size_t(r)] = count;
   });
+  // The sorted ranges get the starts their histogram gave them; the others learn theirs here.
   for(std::size_t r = 0; r < width; ++r) range_start[r + 1] = range_start[r] + range_count[r];
   for_each_part(ranges, Index(1), true, [&](Index r, Index, Index) {
     counts_to_cursors(range_first[std::size_t(r)], range_first[std::size_t(r) + 1], range_start[std::size_t(r)]);
