@@ -177,6 +177,12 @@ inline void prefetch(const void* p) noexcept
 #endif
 }
 
+/// How many nonzeros ahead a product of a sparse matrix with per-vertex values prefetches the
+/// values it gathers through the inner indices: on a large mesh the neighbours' values lie far
+/// apart in memory, and with a handful of nonzeros per row the loads must start many rows early
+/// to hide their latency.
+constexpr int sparse_gather_prefetch_distance = 128;
+
 } // namespace internal
 } // namespace lapmesh
 

@@ -327,6 +327,7 @@ private:
     const Index* outer = S.outerIndexPtr();
     const Index* inner = S.innerIndexPtr();
     const double* values = S.valuePtr();
+    const Index nonzeros = S.nonZeros();
     const Positions& P = m_P;
     // Divergence shows as coordinates that are no longer finite: checked on the values as they
     // are written, which spares a pass over all positions after each step. x - x is zero for a
@@ -341,6 +342,8 @@ private:
         }
         double x = 0, y = 0, z = 0;
         for(Index k = outer[i]; k < outer[i + 1]; ++k) {
+          if(k + sparse_gather_prefetch_distance < nonzeros)
+            prefetch(P.data() + 3 * std::size_t(inner[k + sparse_gather_prefetch_distance]));
           const double w = values[k];
           const double* p = P.data() + 3 * std::size_t(inner[k]);
           x += w * p[0]; y += w * p[1]; z += w * p[2];

@@ -4,6 +4,7 @@
 #ifndef LAPMESH_INTERNAL_STABILITY_BOUND_H
 #define LAPMESH_INTERNAL_STABILITY_BOUND_H
 
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
@@ -46,15 +47,22 @@ inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& penc
 {
   const Index n = Index(pencil.mass.size());
   const auto& S = pencil.stiffness;
-  Eigen::VectorXd inv_sqrt_m(n);
+  Eigen::VectorXd inv_sqrt_m(n), scaled(n);
   for(Index i = 0; i < n; ++i) inv_sqrt_m[i] = free_mask[i] ? 1.0 / std::sqrt(pencil.mass[i]) : 0.0;
+  const Index* outer = S.outerIndexPtr();
+  const Index* inner = S.innerIndexPtr();
+  const double* values = S.valuePtr();
+  const Index nonzeros = S.nonZeros();
+  // The neighbours' values are gathered from one array, scaled beforehand, and prefetched well
+  // ahead, as in the explicit step: the gathers miss the caches on a large mesh.
   auto apply = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    scaled = inv_sqrt_m.cwiseProduct(x);
     for_each_index(n, parallel, [&](Index i) {
       if(!free_mask[i]) { y[i] = 0; return; }
       double s = 0;
-      for(Index k = S.outerIndexPtr()[i]; k < S.outerIndexPtr()[i + 1]; ++k) {
-        const Index j = S.innerIndexPtr()[k];
-        s += S.valuePtr()[k] * inv_sqrt_m[j] * x[j];
+      for(Index k = outer[i]; k < outer[i + 1]; ++k) {
+        if(k + sparse_gather_prefetch_distance < nonzeros) prefetch(&scaled[inner[k + sparse_gather_prefetch_distance]]);
+        s += values[k] * scaled[inner[k]];
       }
       y[i] = -inv_sqrt_m[i] * s;
     });
