@@ -14,6 +14,7 @@
 #include <lapmesh/internal/subnormals.h>
 
 #include <CGAL/Eigen_solver_traits.h>
+#include <CGAL/Exact_rational.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/smooth_shape.h>
 
@@ -264,6 +265,39 @@ TEST(Smoothing, CotangentImplicitWithBoundaryAndConstraintsEqualsDenseDirichletS
       m, lambda, LP::fixed_operator(fixed_operator).number_of_iterations(3).vertex_is_constrained_map(constrained));
     EXPECT_LE((positions(m) - X).cwiseAbs().maxCoeff(), 1e-12) << "fixed operator " << fixed_operator;
     EXPECT_GT((positions(m) - positions(input)).cwiseAbs().maxCoeff(), 1e-3);  // it did move
+  }
+}
+
+TEST(Smoothing, FixedVerticesKeepTheirExactKernelCoordinates)
+{
+  // Over exact rationals that no double represents, the boundary (fixed) keeps its exact
+  // points: only what moved is written back, and a fixed vertex's double does not count as moved.
+  using Exact_kernel = CGAL::Simple_cartesian<CGAL::Exact_rational>;
+  using Exact_mesh = CGAL::Surface_mesh<Exact_kernel::Point_3>;
+  Exact_mesh input;
+  ASSERT_TRUE(lapmesh::make_mesh(bumpy_patch(6), input));
+  const Exact_kernel::Vector_3 third(CGAL::Exact_rational(1, 3072), CGAL::Exact_rational(1, 3072), CGAL::Exact_rational(-1, 3072));
+  for(auto v : vertices(input)) input.point(v) = input.point(v) + third;
+  for(bool explicit_scheme : {true, false}) {
+    Exact_mesh m = input;
+    const auto np = CGAL::parameters::number_of_iterations(3);
+    if(explicit_scheme)
+      lapmesh::smooth_laplacian_explicit(m, 0.5 * lapmesh::explicit_stability_bound(m), np);
+    else
+      lapmesh::smooth_laplacian_implicit(m, 0.004, np);
+    int border = 0, moved = 0;
+    for(auto v : vertices(m)) {
+      const auto& before = input.point(v);
+      if(m.is_border(v)) {
+        ++border;
+        EXPECT_TRUE(m.point(v) == before) << "border vertex " << v.idx() << (explicit_scheme ? " (explicit)" : " (implicit)");
+        EXPECT_NE(CGAL::Exact_rational(CGAL::to_double(before.x())), before.x());  // no double equals it
+      } else {
+        moved += m.point(v) != before;
+      }
+    }
+    EXPECT_GT(border, 0);
+    EXPECT_EQ(moved, int(num_vertices(m)) - border) << (explicit_scheme ? "explicit" : "implicit");
   }
 }
 
