@@ -20,6 +20,11 @@
 
 #include <Eigen/Dense>
 
+#ifdef CGAL_LINKED_WITH_TBB
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+#endif
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -138,6 +143,29 @@ TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
     EXPECT_NEAR(bound, 2.0 / mu_max, 1e-7 * bound) << lapmesh::to_string(lap);
     EXPECT_LE(bound, 2.0 / mu_max * (1 + 1e-12));  // on the safe side
   }
+}
+
+TEST(Smoothing, StabilityBoundInParallelIsTheSerialOne)
+{
+  // The Lanczos products scale the vector and gather each row alike on any thread: with fixed
+  // vertices, and several threads, the estimate is bitwise the serial one.
+  const Mesh m = jittered(lapmesh::icosphere(6), 0.05, 3);
+  const auto pencil = lapmesh::laplacian_pencil(m);
+  std::vector<char> free_mask(num_vertices(m), 1);
+  for(std::size_t i = 3; i < free_mask.size(); i += 7) free_mask[i] = 0;
+  const double serial = lapmesh::internal::explicit_stability_bound(pencil, free_mask, false);
+  EXPECT_GT(serial, 0.0);
+  EXPECT_LT(serial, std::numeric_limits<double>::infinity());
+#ifdef CGAL_LINKED_WITH_TBB
+  for(int threads : {2, 5}) {
+    tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+    tbb::task_arena(threads).execute([&] {
+      EXPECT_EQ(lapmesh::internal::explicit_stability_bound(pencil, free_mask, true), serial) << threads << " threads";
+    });
+  }
+#else
+  FAIL() << "lapmesh was built without TBB (libtbb-dev): its parallel path is not tested";
+#endif
 }
 
 TEST(Smoothing, ExplicitBlowsUpAboveTheBoundAndNotBelow)

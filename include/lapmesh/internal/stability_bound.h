@@ -56,7 +56,7 @@ inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& penc
   // The neighbours' values are gathered from one array, scaled beforehand, and prefetched well
   // ahead, as in the explicit step: the gathers miss the caches on a large mesh.
   auto apply = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    scaled = inv_sqrt_m.cwiseProduct(x);
+    for_each_index(n, parallel, [&](Index i) { scaled[i] = inv_sqrt_m[i] * x[i]; });
     for_each_index(n, parallel, [&](Index i) {
       if(!free_mask[i]) { y[i] = 0; return; }
       double s = 0;
