@@ -153,16 +153,14 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
     [&] { return smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s); });
 
   // Write back only what moved: fixed vertices keep their exact kernel coordinates. What moved
-  // is told by the mesh's own points, converted as the extraction converted them, rather than
-  // by a copy of the positions taken before (a fresh array as large as the positions).
+  // is told by the mesh's own points, read as the extraction read them (point_coordinates()),
+  // rather than by a copy of the positions taken before (a fresh array as large as them).
   using Vpm = typename CGAL::GetVertexPointMap<TriangleMesh, NamedParameters>::type;
   Vpm vpm = choose_parameter(get_parameter(np, CGAL::internal_np::vertex_point), get_property_map(CGAL::vertex_point, tm));
   using Point = typename boost::property_traits<Vpm>::value_type;
   mesh.for_each_vertex([&](auto v, Index i) {
     const auto r = mesh.positions.row(i);
-    const auto& p = get(vpm, v);
-    if(r[0] != CGAL::to_double(p.x()) || r[1] != CGAL::to_double(p.y()) || r[2] != CGAL::to_double(p.z()))
-      put(vpm, v, Point(r[0], r[1], r[2]));
+    if(r != internal::point_coordinates(get(vpm, v))) put(vpm, v, Point(r[0], r[1], r[2]));
   });
   return report;
 }

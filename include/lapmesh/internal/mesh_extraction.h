@@ -53,6 +53,14 @@ template <typename Point>
 struct is_surface_mesh<CGAL::Surface_mesh<Point>> : std::true_type
 {};
 
+/// The coordinates of a kernel point as doubles: how every extraction reads a vertex, and how
+/// the smoothing's write-back tells a vertex that moved from one that did not.
+template <typename Point>
+Eigen::RowVector3d point_coordinates(const Point& p)
+{
+  return Eigen::RowVector3d(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+}
+
 /// Positions and triangles as read, before any topology is built (what writing a mesh needs).
 template <typename TriangleMesh>
 struct Extracted_arrays
@@ -175,13 +183,12 @@ Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, Verte
   out.positions.resize(n, 3);
   std::vector<char> seen(n, 0);
   for(const auto& [v, id] : out.vertex_rows) {
-    const auto& p = get(vpm, v);
-    const double x = CGAL::to_double(p.x()), y = CGAL::to_double(p.y()), z = CGAL::to_double(p.z());
-    if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+    const Eigen::RowVector3d p = point_coordinates(get(vpm, v));
+    if(!p.allFinite())
       throw Mesh_error("vertex " + std::to_string(id) + " has a non-finite coordinate",
                        Mesh_error::Element::vertex, id);
     if(seen[id]) {  // a welded copy
-      if(out.positions(id, 0) != x || out.positions(id, 1) != y || out.positions(id, 2) != z)
+      if(out.positions.row(id) != p)
         throw Mesh_error("two vertices with index " + std::to_string(id) +
                            " in the vertex index map have different positions",
                          Mesh_error::Element::vertex, id);
@@ -189,7 +196,7 @@ Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, Verte
     }
     seen[id] = 1;
     out.vertices[id] = v;
-    out.positions.row(id) << x, y, z;
+    out.positions.row(id) = p;
   }
   for(Index i = 0; i < n; ++i)
     if(!seen[i]) throw Mesh_error("the vertex index map gives no vertex the index " + std::to_string(i));
@@ -226,10 +233,9 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   First_index<Index> non_finite;
   for_each_index(n, parallel, [&](Index i) {
     const Vertex v(static_cast<typename Vertex::size_type>(i));
-    const auto& p = get(vpm, v);
-    const double x = CGAL::to_double(p.x()), y = CGAL::to_double(p.y()), z = CGAL::to_double(p.z());
-    out.positions.row(i) << x, y, z;
-    if(!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) non_finite.record(i);
+    const Eigen::RowVector3d p = point_coordinates(get(vpm, v));
+    out.positions.row(i) = p;
+    if(!p.allFinite()) non_finite.record(i);
     out.vertices[std::size_t(i)] = v;
     out.vertex_rows[std::size_t(i)] = {v, i};
   });

@@ -46,9 +46,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   Index n = 0;
   for(typename GT::vertex_descriptor v : vertices(tm)) {
     if(Index(get(row_of, v)) != n) return false;
-    const auto& p = get(vpm, v);
-    if(!std::isfinite(CGAL::to_double(p.x())) || !std::isfinite(CGAL::to_double(p.y())) ||
-       !std::isfinite(CGAL::to_double(p.z())))
+    if(!point_coordinates(get(vpm, v)).allFinite())
       throw Mesh_error("vertex " + std::to_string(n) + " has a non-finite coordinate", Mesh_error::Element::vertex, n);
     ++n;
   }
