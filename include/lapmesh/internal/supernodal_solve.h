@@ -18,8 +18,8 @@
 #include <cstring>
 
 // The baseline build of the kernels passes 32-byte vectors between inlined helpers, for which
-// GCC notes that the ABI differs with AVX: nothing crosses a call boundary.
-#if defined(__GNUC__) && !defined(__clang__)
+// GCC and Clang note that the ABI differs with AVX: nothing crosses a call boundary.
+#if defined(__GNUC__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
@@ -275,7 +275,7 @@ inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X
 
 #undef LAPMESH_ALWAYS_INLINE
 #undef LAPMESH_SUPERNODAL_ROW_VECTORS
-#if defined(__GNUC__) && !defined(__clang__)
+#if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
 
