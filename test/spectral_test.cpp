@@ -540,9 +540,10 @@ TEST(Spectral, TallProductsInRowPanelsEqualEigenProducts)
   // height that is not a multiple of the panel; beta = 0 must not read C.
   using Eigen::MatrixXd;
   const Eigen::Index n = 5000 + 37;
-  const MatrixXd big = MatrixXd::Random(n, 12), W = MatrixXd::Random(n, 3);
+  // W wider than lapmesh's own kernels take (thin_block_max_columns), so that the BLAS runs.
+  const MatrixXd big = MatrixXd::Random(n, 12), W = MatrixXd::Random(n, 10);
   const auto V = big.middleCols(2, 7);
-  MatrixXd C(7, 3);
+  MatrixXd C(7, 10);
   C.setConstant(std::numeric_limits<double>::quiet_NaN());
   lapmesh::internal::panel_product_tn(V, W, C);
   const MatrixXd C_ref = V.transpose() * W;

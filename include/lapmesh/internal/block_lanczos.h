@@ -49,18 +49,31 @@
 namespace lapmesh {
 namespace internal {
 
-/// C = V^T W for a tall V and a thin W.
+/// C = V^T W for a tall V and a thin W: lapmesh's kernels up to thin_block_max_columns columns,
+/// the BLAS (or Eigen) in row panels beyond.
 inline void panel_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& W,
                              Eigen::MatrixXd& C)
 {
+#ifdef LAPMESH_THIN_PRODUCTS
+  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && V.cols() >= 1) {
+    thin_product_tn(V, W, C);
+    return;
+  }
+#endif
   C.resize(V.cols(), W.cols());
   tall_gemm(true, 1.0, V, W, 0.0, C);
 }
 
-/// W -= V C.
+/// W -= V C, as panel_product_tn() chooses.
 inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::MatrixXd& C,
                                    Eigen::Ref<Eigen::MatrixXd> W)
 {
+#ifdef LAPMESH_THIN_PRODUCTS
+  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && V.cols() >= 1) {
+    thin_subtract_product(V, C, W);
+    return;
+  }
+#endif
   tall_gemm(false, -1.0, V, C, 1.0, W);
 }
 

@@ -1,12 +1,40 @@
-// lapmesh — the dense product under the block eigensolver and the supernodal LDL^T: C = alpha
-// op(A) B + beta C on column-major blocks, by the BLAS when lapmesh has one.
+// lapmesh — the dense products under the block eigensolver and the supernodal LDL^T: C = alpha
+// op(A) B + beta C on column-major blocks, by the BLAS when lapmesh has one; and the two products
+// of a tall basis with a block of at most 8 columns (V^T W, W - V C) by lapmesh's own kernels.
+//
+// Why own kernels for the thin products. They are memory bound: each value of the basis is used
+// for at most 8 multiply-adds. A BLAS first copies the basis into its blocked format (OpenBLAS's
+// packing took as long as its multiplication kernel in a profile of 100 eigenpairs at 44k
+// vertices), so it reads the basis from memory and then computes from cache, one after the
+// other. The kernels below read each column of the basis once, in row panels, and multiply as
+// they read: the rows of the thin block sit side by side in a small buffer that stays in the
+// first-level cache. On x86-64 they are compiled for the baseline and for AVX2 + FMA, chosen at
+// run time.
 #ifndef LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 #define LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <cassert>
 #include <cstddef>
+#include <cstring>
+#include <vector>
+
+// The baseline build passes 32-byte vectors between inlined helpers, for which GCC notes that the
+// ABI differs with AVX (Clang too): nothing crosses a call boundary.
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+// The kernels use GCC's vector extensions (GCC and Clang); elsewhere the BLAS or Eigen does all.
+#if defined(__GNUC__)
+#define LAPMESH_THIN_PRODUCTS 1
+#define LAPMESH_THIN_INLINE __attribute__((always_inline)) inline
+#if defined(__x86_64__)
+#define LAPMESH_THIN_PRODUCTS_AVX2 1
+#endif
+#endif
 
 namespace lapmesh {
 namespace internal {
@@ -72,7 +100,270 @@ inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eig
   }
 }
 
+#ifdef LAPMESH_THIN_PRODUCTS
+namespace thin_kernels {
+
+using Index = std::ptrdiff_t;
+typedef double Vec4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+
+// Templates, so that GCC's note on the vector ABI (-Wpsabi) is judged where the pragma holds.
+template <typename Vec = Vec4>
+LAPMESH_THIN_INLINE Vec load4(const double* p)
+{
+  Vec v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <typename Vec>
+LAPMESH_THIN_INLINE void store4(double* p, const Vec& v)
+{
+  std::memcpy(p, &v, sizeof v);
+}
+
+/// Rows per panel of the product V^T W: the panel of W (at most 8 values a row) fills 16 KB.
+constexpr Index panel_rows = 256;
+
+/// A view of a column-major block: column j starts at data + j * stride.
+struct Columns
+{
+  const double* data;
+  Index stride;
+};
+
+/// Copies rows [r0, r0 + h) of the b columns of W into `rows`, Lanes values a row. The values
+/// past b are left as they are: the lanes of a row never mix, and only the first b are read back.
+template <int Lanes>
+LAPMESH_THIN_INLINE void gather_rows(Columns W, Index b, Index r0, Index h, double* rows)
+{
+  for(Index c = 0; c < b; ++c) {
+    const double* w = W.data + c * W.stride + r0;
+    for(Index r = 0; r < h; ++r) rows[r * Lanes + c] = w[r];
+  }
+}
+
+/// The inverse of gather_rows().
+template <int Lanes>
+LAPMESH_THIN_INLINE void scatter_rows(const double* rows, Index b, Index r0, Index h, double* W, Index ldw)
+{
+  for(Index c = 0; c < b; ++c) {
+    double* w = W + c * ldw + r0;
+    for(Index r = 0; r < h; ++r) w[r] = rows[r * Lanes + c];
+  }
+}
+
+/// sums (rows j .. j + Cols - 1 of Lanes values each) += V[r0 : r0 + h, j : j + Cols]^T rows,
+/// with Lanes = 4 Vecs: Cols Vecs vectors accumulate independently.
+template <int Vecs, int Cols>
+LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Index h, const double* rows, double* sums)
+{
+  constexpr int Lanes = 4 * Vecs;
+  const double* v = V.data + j * V.stride + r0;
+  Vec4 acc[Cols][Vecs] = {};
+  for(Index r = 0; r < h; ++r) {
+    Vec4 w[Vecs];
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+#pragma GCC unroll 8
+    for(int c = 0; c < Cols; ++c) {
+      const double s = v[c * V.stride + r];
+#pragma GCC unroll 2
+      for(int q = 0; q < Vecs; ++q) acc[c][q] += s * w[q];
+    }
+  }
+#pragma GCC unroll 8
+  for(int c = 0; c < Cols; ++c)
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) {
+      double* out = sums + (j + c) * Lanes + 4 * q;
+      store4(out, load4(out) + acc[c][q]);
+    }
+}
+
+/// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], the rows and the
+/// coefficients 4 values each.
+template <int Cols>
+LAPMESH_THIN_INLINE void subtract_columns(Columns V, Index j, Index r0, Index h, const double* coefficients, double* rows)
+{
+  const double* v = V.data + j * V.stride + r0;
+  Vec4 k[Cols];
+#pragma GCC unroll 8
+  for(int c = 0; c < Cols; ++c) k[c] = load4(coefficients + (j + c) * 4);
+  for(Index r = 0; r < h; ++r) {
+    Vec4 w = load4(rows + r * 4);
+#pragma GCC unroll 8
+    for(int c = 0; c < Cols; ++c) w -= v[c * V.stride + r] * k[c];
+    store4(rows + r * 4, w);
+  }
+}
+
+/// Runs `step.template columns<Cols>(j)` over columns [0, m) of V: Widest columns at a time, the
+/// rest in groups of 4, 2 and 1.
+template <int Widest, typename Step>
+LAPMESH_THIN_INLINE void over_column_groups(Index m, const Step& step)
+{
+  Index j = 0;
+  for(; j + Widest <= m; j += Widest) step.template columns<Widest>(j);
+  if(Widest > 4 && j + 4 <= m) {
+    step.template columns<4>(j);
+    j += 4;
+  }
+  if(j + 2 <= m) {
+    step.template columns<2>(j);
+    j += 2;
+  }
+  if(j < m) step.template columns<1>(j);
+}
+
+// The two panel steps as objects (not lambdas, which would not be compiled for the caller's target).
+template <int Vecs>
+struct Accumulate_tn
+{
+  Columns V;
+  Index r0, h;
+  const double* rows;
+  double* sums;
+  template <int Cols>
+  LAPMESH_THIN_INLINE void columns(Index j) const
+  {
+    accumulate_tn_columns<Vecs, Cols>(V, j, r0, h, rows, sums);
+  }
+};
+struct Subtract
+{
+  Columns V;
+  Index r0, h;
+  const double* coefficients;
+  double* rows;
+  template <int Cols>
+  LAPMESH_THIN_INLINE void columns(Index j) const
+  {
+    subtract_columns<Cols>(V, j, r0, h, coefficients, rows);
+  }
+};
+
+/// C (m x b, leading dimension ldc) = V[:, 0:m]^T W, V and W of n rows, 1 <= b <= 8.
+template <int Vecs>
+LAPMESH_THIN_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+{
+  constexpr int Lanes = 4 * Vecs;
+  std::vector<double> sums(std::size_t(m * Lanes), 0.0);
+  alignas(32) double rows[panel_rows * Lanes] = {};
+  for(Index r0 = 0; r0 < n; r0 += panel_rows) {
+    const Index h = std::min(panel_rows, n - r0);
+    gather_rows<Lanes>(W, b, r0, h, rows);
+    over_column_groups<8 / Vecs>(m, Accumulate_tn<Vecs>{V, r0, h, rows, sums.data()});
+  }
+  for(Index c = 0; c < b; ++c)
+    for(Index j = 0; j < m; ++j) C[c * ldc + j] = sums[std::size_t(j * Lanes + c)];
+}
+
+/// W (n x b, leading dimension ldw) -= V[:, 0:m] C, C m x b, 1 <= b <= 8. Four columns of W at a
+/// time (eight would not leave registers for the coefficients of eight columns of V); a panel of
+/// V is read from memory for the first four and from the second-level cache for the others.
+LAPMESH_THIN_INLINE void subtract(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b)
+{
+  const Index quads = (b + 3) / 4;
+  // Two quads read each panel of V twice: 128 rows of a basis of a few hundred columns stay in
+  // the second-level cache between the two.
+  const Index rows_per_panel = quads == 1 ? 256 : 128;
+  std::vector<double> coefficients(std::size_t(quads * m * 4), 0.0);  // quad q: m rows of 4 values
+  for(Index c = 0; c < b; ++c)
+    for(Index j = 0; j < m; ++j) coefficients[std::size_t((c / 4 * m + j) * 4 + c % 4)] = C.data[c * C.stride + j];
+  alignas(32) double rows[256 * 4] = {};
+  for(Index r0 = 0; r0 < n; r0 += rows_per_panel) {
+    const Index h = std::min(rows_per_panel, n - r0);
+    for(Index q = 0; q < quads; ++q) {
+      const Index width = std::min<Index>(4, b - 4 * q);
+      double* w = W + 4 * q * ldw;
+      gather_rows<4>(Columns{w, ldw}, width, r0, h, rows);
+      over_column_groups<8>(m, Subtract{V, r0, h, coefficients.data() + q * m * 4, rows});
+      scatter_rows<4>(rows, width, r0, h, w, ldw);
+    }
+  }
+}
+
+inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+{
+  if(b <= 4)
+    product_tn<1>(V, n, m, W, b, C, ldc);
+  else
+    product_tn<2>(V, n, m, W, b, C, ldc);
+}
+inline void subtract_baseline(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b)
+{
+  subtract(V, n, m, C, W, ldw, b);
+}
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+__attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index n, Index m, Columns W, Index b,
+                                                                 double* C, Index ldc)
+{
+  if(b <= 4)
+    product_tn<1>(V, n, m, W, b, C, ldc);
+  else
+    product_tn<2>(V, n, m, W, b, C, ldc);
+}
+__attribute__((target("avx2,fma"))) inline void subtract_avx2(Columns V, Index n, Index m, Columns C, double* W,
+                                                               Index ldw, Index b)
+{
+  subtract(V, n, m, C, W, ldw, b);
+}
+#endif
+
+/// Whether the kernels are compiled for AVX2 + FMA and the CPU has both.
+inline bool use_avx2()
+{
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return avx2;
+#else
+  return false;
+#endif
+}
+
+} // namespace thin_kernels
+
+/// The widest block that thin_product_tn() and thin_subtract_product() take.
+constexpr Eigen::Index thin_block_max_columns = 8;
+
+/// C = V^T W for a tall V (any outer stride) and a W of 1 to 8 columns (thin_block_max_columns).
+inline void thin_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& W,
+                            Eigen::MatrixXd& C)
+{
+  assert(V.rows() == W.rows() && W.cols() >= 1 && W.cols() <= thin_block_max_columns);
+  C.resize(V.cols(), W.cols());
+  const thin_kernels::Columns v{V.data(), V.outerStride()}, w{W.data(), W.outerStride()};
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  if(thin_kernels::use_avx2()) {
+    thin_kernels::product_tn_avx2(v, V.rows(), V.cols(), w, W.cols(), C.data(), C.outerStride());
+    return;
+  }
+#endif
+  thin_kernels::product_tn_baseline(v, V.rows(), V.cols(), w, W.cols(), C.data(), C.outerStride());
+}
+
+/// W -= V C for a tall V (any outer stride) and a W of 1 to 8 columns (thin_block_max_columns).
+inline void thin_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& C,
+                                  Eigen::Ref<Eigen::MatrixXd> W)
+{
+  assert(V.rows() == W.rows() && V.cols() == C.rows() && C.cols() == W.cols() && W.cols() >= 1 &&
+         W.cols() <= thin_block_max_columns);
+  const thin_kernels::Columns v{V.data(), V.outerStride()}, c{C.data(), C.outerStride()};
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  if(thin_kernels::use_avx2()) {
+    thin_kernels::subtract_avx2(v, V.rows(), V.cols(), c, W.data(), W.outerStride(), W.cols());
+    return;
+  }
+#endif
+  thin_kernels::subtract_baseline(v, V.rows(), V.cols(), c, W.data(), W.outerStride(), W.cols());
+}
+#endif
+
 } // namespace internal
 } // namespace lapmesh
+
+#if defined(__GNUC__)
+#undef LAPMESH_THIN_INLINE
+#pragma GCC diagnostic pop
+#endif
 
 #endif
