@@ -30,6 +30,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/dense_products.h>
+#include <lapmesh/internal/memory.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -130,6 +131,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
                           std::to_string(m_max) + " vectors (n = " + std::to_string(n) + ")");
 
   MatrixXd V(n, m_max + b);                             // basis; columns [0, filled) are valid
+  advise_huge_pages(V);  // written a block at a time: one fault per 2 MiB instead of per 4 KiB
   MatrixXd T = MatrixXd::Zero(m_max + b, m_max + b);  // V^T A V on the processed columns
   std::mt19937_64 rng(opt.seed);
   auto random_unit = [&](Eigen::Ref<Eigen::VectorXd> x) {
