@@ -6,8 +6,10 @@
 #include <lapmesh/io.h>
 #include <lapmesh/spectral_reconstruction.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -239,6 +241,42 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
   llt.compute(K);
   lapmesh::internal::Supernodal_ldlt ldlt(*llt.factor());
   EXPECT_FALSE(ldlt.factorize(ldlt.permuted_lower(mS), Eigen::VectorXd(mS.diagonal()), 1.0));
+}
+#endif
+
+#if defined(LAPMESH_HAS_CHOLMOD) && SUITESPARSE_MAIN_VERSION < 7
+TEST(Spectral, CholmodAllocatesWithHugePageAdvice)
+{
+  // After the first Cholmod_supernodal_llt, SuiteSparse's malloc and calloc are the C library's
+  // followed by huge-page advice; blocks from them (one below and one above the advice's 32 MiB)
+  // are writable and zeroed where calloc'd, and go back through SuiteSparse's free; a
+  // factorisation still solves.
+  const lapmesh::internal::Cholmod_supernodal_llt llt;
+  auto* config = static_cast<SuiteSparse_config_struct*>(dlsym(RTLD_DEFAULT, "SuiteSparse_config"));
+  ASSERT_NE(config, nullptr);
+  EXPECT_EQ(config->malloc_func, &lapmesh::internal::malloc_with_huge_page_advice);
+  EXPECT_EQ(config->calloc_func, &lapmesh::internal::calloc_with_huge_page_advice);
+  for(const std::size_t bytes : {std::size_t(1) << 20, std::size_t(40) << 20}) {
+    auto* block = static_cast<unsigned char*>(config->malloc_func(bytes));
+    ASSERT_NE(block, nullptr);
+    std::memset(block, 7, bytes);
+    EXPECT_EQ(block[bytes - 1], 7);
+    config->free_func(block);
+    auto* zeroed = static_cast<double*>(config->calloc_func(bytes / sizeof(double), sizeof(double)));
+    ASSERT_NE(zeroed, nullptr);
+    const std::size_t count = bytes / sizeof(double);
+    EXPECT_EQ(std::count(zeroed, zeroed + count, 0.0), std::ptrdiff_t(count));
+    config->free_func(zeroed);
+  }
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(40, 30, 1.0, 0.3)));
+  Eigen::SparseMatrix<double> K = -pencil.stiffness;
+  K.diagonal() += pencil.mass;
+  lapmesh::internal::Cholmod_supernodal_llt factor;
+  factor.compute(K);
+  ASSERT_EQ(factor.info(), Eigen::Success);
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);
+  const Eigen::VectorXd x = factor.solve(b);
+  EXPECT_LE((K * x - b).norm(), 1e-10 * b.norm());
 }
 #endif
 

@@ -16,6 +16,13 @@
 // CHOLMOD prints its warnings and errors itself (on stdout, by default): every
 // Cholmod_supernodal_llt routes them into last_cholmod_message() instead, which the callers
 // turn into lapmesh exceptions.
+//
+// CHOLMOD allocates its factor (hundreds of MiB on large meshes) through SuiteSparse's
+// configured malloc and calloc, and glibc maps such blocks afresh at every call, where they fault
+// in one 4 KiB page at a time as CHOLMOD zeroes them. The first Cholmod_supernodal_llt replaces
+// SuiteSparse's default malloc and calloc by the same functions followed by huge-page advice
+// (internal/memory.h: blocks of 32 MiB or more), once per process; an allocator that the
+// application configured itself is left alone.
 #ifndef LAPMESH_INTERNAL_CHOLMOD_H
 #define LAPMESH_INTERNAL_CHOLMOD_H
 
@@ -31,6 +38,7 @@
 #include <dlfcn.h>
 
 #include <cstddef>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -56,6 +64,41 @@ inline void route_cholmod_messages(cholmod_common& common)
 {
   common.print = 0;
   common.error_handler = &record_cholmod_message;
+}
+
+/// std::malloc, then huge-page advice for a large block (which glibc has just mapped, untouched).
+inline void* malloc_with_huge_page_advice(std::size_t bytes)
+{
+  void* p = std::malloc(bytes);
+  if(p) advise_huge_pages(p, bytes);
+  return p;
+}
+/// std::calloc, then huge-page advice for a large block (glibc does not write a fresh mapping).
+inline void* calloc_with_huge_page_advice(std::size_t count, std::size_t size)
+{
+  void* p = std::calloc(count, size);
+  if(p && size > 0 && count <= std::size_t(-1) / size) advise_huge_pages(p, count * size);
+  return p;
+}
+
+/// Points SuiteSparse's malloc and calloc to the two functions above, where they are still the C
+/// library's (once per process). The configuration is found at run time in the SuiteSparse that
+/// CHOLMOD loaded, so that programs need not link SuiteSparse_config themselves (before
+/// SuiteSparse 7, which reaches it through functions instead: there nothing changes yet). SuiteSparse asks applications to change
+/// it before threads start: the change is one pointer store each, to functions that allocate as
+/// the ones they replace do, so a CHOLMOD call in another thread gets a valid allocator either way.
+inline void advise_huge_pages_for_cholmod()
+{
+#if defined(SUITESPARSE_MAIN_VERSION) && SUITESPARSE_MAIN_VERSION < 7
+  static const bool installed = [] {
+    auto* config = static_cast<SuiteSparse_config_struct*>(dlsym(RTLD_DEFAULT, "SuiteSparse_config"));
+    if(!config) return false;
+    if(config->malloc_func == &std::malloc) config->malloc_func = &malloc_with_huge_page_advice;
+    if(config->calloc_func == &std::calloc) config->calloc_func = &calloc_with_huge_page_advice;
+    return true;
+  }();
+  (void)installed;
+#endif
 }
 
 /// Makes OpenMP parallel regions inactive in its scope (this thread's setting; with runtimes
@@ -129,6 +172,7 @@ public:
 
   explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd)
   {
+    advise_huge_pages_for_cholmod();
     route_cholmod_messages(cholmod());
     set_ordering(ordering);
   }
