@@ -83,10 +83,11 @@ inline void* calloc_with_huge_page_advice(std::size_t count, std::size_t size)
 
 /// Points SuiteSparse's malloc and calloc to the two functions above, where they are still the C
 /// library's (once per process). The configuration is found at run time in the SuiteSparse that
-/// CHOLMOD loaded, so that programs need not link SuiteSparse_config themselves (before
-/// SuiteSparse 7, which reaches it through functions instead: there nothing changes yet). SuiteSparse asks applications to change
-/// it before threads start: the change is one pointer store each, to functions that allocate as
-/// the ones they replace do, so a CHOLMOD call in another thread gets a valid allocator either way.
+/// CHOLMOD loaded, so that programs need not link SuiteSparse_config themselves. SuiteSparse 7
+/// reaches it through functions instead: there nothing changes yet. SuiteSparse asks
+/// applications to change it before threads start: the change is one pointer store each, to
+/// functions that allocate as the ones they replace do, so that a CHOLMOD call in another thread
+/// gets a valid allocator either way.
 inline void advise_huge_pages_for_cholmod()
 {
 #if defined(SUITESPARSE_MAIN_VERSION) && SUITESPARSE_MAIN_VERSION < 7
