@@ -106,19 +106,13 @@ namespace thin_kernels {
 using Index = std::ptrdiff_t;
 typedef double Vec4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
 
-// Templates, so that GCC's note on the vector ABI (-Wpsabi) is judged where the pragma holds.
-template <typename Vec = Vec4>
-LAPMESH_THIN_INLINE Vec load4(const double* p)
+LAPMESH_THIN_INLINE Vec4 load4(const double* p)
 {
-  Vec v;
+  Vec4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-template <typename Vec>
-LAPMESH_THIN_INLINE void store4(double* p, const Vec& v)
-{
-  std::memcpy(p, &v, sizeof v);
-}
+LAPMESH_THIN_INLINE void store4(double* p, const Vec4& v) { std::memcpy(p, &v, sizeof v); }
 
 /// Rows per panel of the product V^T W: the panel of W (at most 8 values a row) fills 16 KB.
 constexpr Index panel_rows = 256;
@@ -282,12 +276,18 @@ LAPMESH_THIN_INLINE void subtract(Columns V, Index n, Index m, Columns C, double
   }
 }
 
-inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+/// product_tn() for a block of b columns: four lanes up to 4, eight beyond.
+LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
   if(b <= 4)
     product_tn<1>(V, n, m, W, b, C, ldc);
   else
     product_tn<2>(V, n, m, W, b, C, ldc);
+}
+
+inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+{
+  product_tn_any_width(V, n, m, W, b, C, ldc);
 }
 inline void subtract_baseline(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b)
 {
@@ -297,10 +297,7 @@ inline void subtract_baseline(Columns V, Index n, Index m, Columns C, double* W,
 __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index n, Index m, Columns W, Index b,
                                                                  double* C, Index ldc)
 {
-  if(b <= 4)
-    product_tn<1>(V, n, m, W, b, C, ldc);
-  else
-    product_tn<2>(V, n, m, W, b, C, ldc);
+  product_tn_any_width(V, n, m, W, b, C, ldc);
 }
 __attribute__((target("avx2,fma"))) inline void subtract_avx2(Columns V, Index n, Index m, Columns C, double* W,
                                                                Index ldw, Index b)
@@ -320,6 +317,23 @@ inline bool use_avx2()
 #endif
 }
 
+/// The build of both kernels that this CPU runs, chosen once.
+struct Kernels
+{
+  void (*product_tn)(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc);
+  void (*subtract)(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b);
+};
+inline const Kernels& kernels()
+{
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  static const Kernels chosen =
+    use_avx2() ? Kernels{&product_tn_avx2, &subtract_avx2} : Kernels{&product_tn_baseline, &subtract_baseline};
+#else
+  static const Kernels chosen{&product_tn_baseline, &subtract_baseline};
+#endif
+  return chosen;
+}
+
 } // namespace thin_kernels
 
 /// The widest block that thin_product_tn() and thin_subtract_product() take.
@@ -331,14 +345,8 @@ inline void thin_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Ei
 {
   assert(V.rows() == W.rows() && W.cols() >= 1 && W.cols() <= thin_block_max_columns);
   C.resize(V.cols(), W.cols());
-  const thin_kernels::Columns v{V.data(), V.outerStride()}, w{W.data(), W.outerStride()};
-#ifdef LAPMESH_THIN_PRODUCTS_AVX2
-  if(thin_kernels::use_avx2()) {
-    thin_kernels::product_tn_avx2(v, V.rows(), V.cols(), w, W.cols(), C.data(), C.outerStride());
-    return;
-  }
-#endif
-  thin_kernels::product_tn_baseline(v, V.rows(), V.cols(), w, W.cols(), C.data(), C.outerStride());
+  thin_kernels::kernels().product_tn({V.data(), V.outerStride()}, V.rows(), V.cols(), {W.data(), W.outerStride()},
+                                     W.cols(), C.data(), C.outerStride());
 }
 
 /// W -= V C for a tall V (any outer stride) and a W of 1 to 8 columns (thin_block_max_columns).
@@ -347,14 +355,8 @@ inline void thin_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, co
 {
   assert(V.rows() == W.rows() && V.cols() == C.rows() && C.cols() == W.cols() && W.cols() >= 1 &&
          W.cols() <= thin_block_max_columns);
-  const thin_kernels::Columns v{V.data(), V.outerStride()}, c{C.data(), C.outerStride()};
-#ifdef LAPMESH_THIN_PRODUCTS_AVX2
-  if(thin_kernels::use_avx2()) {
-    thin_kernels::subtract_avx2(v, V.rows(), V.cols(), c, W.data(), W.outerStride(), W.cols());
-    return;
-  }
-#endif
-  thin_kernels::subtract_baseline(v, V.rows(), V.cols(), c, W.data(), W.outerStride(), W.cols());
+  thin_kernels::kernels().subtract({V.data(), V.outerStride()}, V.rows(), V.cols(), {C.data(), C.outerStride()},
+                                   W.data(), W.outerStride(), W.cols());
 }
 #endif
 
