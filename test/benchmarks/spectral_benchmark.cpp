@@ -235,6 +235,7 @@ void BM_banded(benchmark::State& state)
 }
 BENCHMARK(BM_block)->ArgsProduct({{2}, {30}, {2, 3, 4, 6}, {20, 25, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_block)->ArgsProduct({{3}, {100}, {4, 6, 8}, {15, 20, 25}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_block)->ArgsProduct({{3}, {300}, {4, 8}, {15, 17, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ncv)->ArgsProduct({{1, 3}, {30, 100}, {12, 15, 20, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_banded)->ArgsProduct({{3}, {100, 300}, {25, 40, 60}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_banded)->ArgsProduct({{0}, {1000}, {40, 60, 100}})->Unit(benchmark::kMillisecond)->Iterations(1);

@@ -393,7 +393,8 @@ Spectral_pairs spectra_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
 {
   const Eigen::Index n = sqrt_mass.size();
   Spectral_shift_invert_op<Factor> op(factor, sqrt_mass, on_op);
-  const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(Eigen::Index(opt.ncv_factor * double(m)) + 1, m + 20));
+  const double ncv_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 2.0;
+  const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(Eigen::Index(ncv_factor * double(m)) + 1, m + 20));
   Spectra::SymEigsShiftSolver<Spectral_shift_invert_op<Factor>> eigs(op, m, ncv, sigma);
   eigs.init();
   eigs.compute(Spectra::SortRule::LargestMagn, opt.max_restarts, opt.tolerance, Spectra::SortRule::SmallestAlge);
@@ -436,7 +437,10 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.block_size = opt.block_size > 0 ? opt.block_size : (m < 60 ? 4 : 8);
   bo.tolerance = opt.tolerance;
   bo.max_restarts = opt.max_restarts;
-  bo.max_basis = std::max<Eigen::Index>(Eigen::Index(opt.ncv_factor * double(m)), m + 6 * bo.block_size);
+  // A smaller basis than Spectra's: at k = 300 its re-orthogonalisation outweighs the extra
+  // restarts (doc/spectral.md); at k = 30-200 the two are level.
+  const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 1.75;
+  bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
   Eigen::MatrixXd rhs;
   auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
@@ -768,9 +772,12 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
     throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
-  // Measured (doc/spectral.md): one block Lanczos run is faster up to k ~ 100-200; above,
-  // its basis (2k vectors, re-orthogonalised at every step) costs more than bands of 40.
-  const int band_size = opt.band_size >= 0 ? opt.band_size : (k >= 200 ? 40 : 0);
+  // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about 2k
+  // vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
+  // faster with k, the bands' with n: the bands win from about k = n / 56 (10k and 38k
+  // vertices). Above k = 1000 they also keep the memory near the result's own.
+  const bool bands_by_default = k >= 200 && (56 * k > n || k > 1000);
+  const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
   if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
   {
     Spectral_options o = opt;
