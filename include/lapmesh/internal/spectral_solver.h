@@ -437,8 +437,8 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.block_size = opt.block_size > 0 ? opt.block_size : (m < 60 ? 4 : 8);
   bo.tolerance = opt.tolerance;
   bo.max_restarts = opt.max_restarts;
-  // A smaller basis than Spectra's: at k = 300 its re-orthogonalisation outweighs the extra
-  // restarts (doc/spectral.md); at k = 30-200 the two are level.
+  // A smaller basis than Spectra's: for large k the re-orthogonalisation it saves outweighs the
+  // extra restarts, for small k it saves memory at about the same speed (doc/spectral.md).
   const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 1.75;
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
@@ -772,10 +772,10 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
     throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
-  // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about 2k
-  // vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
-  // faster with k, the bands' with n: the bands win from about k = n / 56 (10k and 38k
-  // vertices). Above k = 1000 they also keep the memory near the result's own.
+  // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
+  // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
+  // faster with k, the bands' with n: the bands win from about k = n / 56. For very large k
+  // they also keep the memory near the result's own.
   const bool bands_by_default = k >= 200 && (56 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
   if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
