@@ -49,6 +49,26 @@ lapmesh::Triangle_soup sliver_sphere(int level)
   return s;
 }
 
+// Two cones of `n` faces each over a ring of `n` vertices whose radii vary at random: apexes of
+// n corners, and flips at the ring where two neighbours' radii differ enough.
+lapmesh::Triangle_soup jittered_bipyramid(int n, unsigned seed)
+{
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> radius(0.7, 1.3);
+  lapmesh::Triangle_soup s;
+  for(int k = 0; k < n; ++k) {
+    const double angle = 2 * M_PI * k / n, r = radius(rng);
+    s.points.push_back({r * std::cos(angle), r * std::sin(angle), 0});
+  }
+  s.points.push_back({0, 0, 0.3});
+  s.points.push_back({0, 0, -0.3});
+  for(int k = 0; k < n; ++k) {
+    s.triangles.push_back({k, (k + 1) % n, n});
+    s.triangles.push_back({(k + 1) % n, k, n + 1});
+  }
+  return s;
+}
+
 double min_off_diagonal(const Eigen::SparseMatrix<double>& S)
 {
   double lowest = std::numeric_limits<double>::infinity();
@@ -113,13 +133,15 @@ TEST(IntrinsicDelaunay, WeightsBecomeNonNegativeAndEdgesDelaunay)
 }
 
 // The stiffness is written column by column from the halfedges; here it is summed corner by
-// corner from triplets instead, on flipped triangulations with repeated edges and loops.
+// corner from triplets instead, on flipped triangulations with repeated edges and loops, and
+// with columns of a few hundred rows (the apexes of two cones).
 TEST(IntrinsicDelaunay, ColumnAssemblyEqualsTheCornerByCornerSum)
 {
   const std::vector<std::pair<std::string, lapmesh::Triangle_soup>> cases = {
     {"jittered sphere", jittered(lapmesh::icosphere(3), 0.02, 7)},
     {"jittered patch", lapmesh::plane_patch(12, 0.45, 3)},
-    {"sliver sphere", sliver_sphere(3)}};
+    {"sliver sphere", sliver_sphere(3)},
+    {"two cones of 300 faces over a jittered ring", jittered_bipyramid(300, 3)}};
   for(const auto& [name, soup] : cases) {
     const Mesh m = to_mesh(soup);
     const auto mesh = lapmesh::internal::extract_mesh(m, CGAL::parameters::default_values());

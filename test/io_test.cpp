@@ -810,6 +810,25 @@ long connectivity_differences(const Mesh& a, const Mesh& b)
   return differences;
 }
 
+// A cone of `faces` triangles around vertex 0 over a ring of vertices (closed: around the
+// apex; open: a fan with a border), the faces in shuffled order and each starting at a random
+// corner, so that the apex's neighbours come in no particular order.
+lapmesh::io::Polygon_soup shuffled_cone(std::size_t faces, bool closed, unsigned seed)
+{
+  lapmesh::io::Polygon_soup soup;
+  soup.points.push_back({0, 0, 1});
+  const std::size_t ring = closed ? faces : faces + 1;
+  for(std::size_t i = 0; i < ring; ++i) {
+    const double angle = 2 * M_PI * double(i) / double(faces + (closed ? 0 : 1));
+    soup.points.push_back({std::cos(angle), std::sin(angle), 0});
+  }
+  for(std::size_t i = 0; i < faces; ++i) soup.polygons.push_back({0, 1 + i, 1 + (i + 1) % ring});
+  std::mt19937 random(seed);
+  std::shuffle(soup.polygons.begin(), soup.polygons.end(), random);
+  for(auto& p : soup.polygons) std::rotate(p.begin(), p.begin() + random() % 3, p.end());
+  return soup;
+}
+
 } // namespace
 
 TEST(Io, AManifoldSurfaceMeshIsBuiltExactlyAsFaceByFace)
@@ -822,7 +841,9 @@ TEST(Io, AManifoldSurfaceMeshIsBuiltExactlyAsFaceByFace)
     with_isolated.polygons.push_back({std::size_t(t[0]), std::size_t(t[1]), std::size_t(t[2])});
   with_isolated.points.push_back({5, 5, 5});
   std::vector<std::pair<std::string, lapmesh::io::Polygon_soup>> cases = {
-    {"bumpy sphere with a vertex in no face", with_isolated}};
+    {"bumpy sphere with a vertex in no face", with_isolated},
+    {"a closed cone of 3000 faces around a vertex, shuffled", shuffled_cone(3000, true, 1)},
+    {"an open fan of 3000 faces around a vertex, shuffled", shuffled_cone(3000, false, 2)}};
   for(const char* name : {"cube-ouvert.off", "blobby_3cc.off", "blobby-shuffled.off", "double-torus-3-holes.off",
                           "elephant.off"})
     cases.emplace_back(name, lapmesh::io::read_polygon_soup(cgal_mesh(name)));
@@ -856,6 +877,52 @@ TEST(Io, SurfacesThatAreNotManifoldAreLeftToFaceByFace)
     EXPECT_FALSE(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, m)) << name;
     EXPECT_EQ(m.number_of_vertices(), 0u) << name;
   }
+  // The same at a vertex of many faces: two open fans of 500 faces around it, and one of
+  // them turned over (as given: soup_to_triangles() would turn it back).
+  const auto as_given = [](const lapmesh::io::Polygon_soup& s) {
+    Tris tris;
+    for(const auto& p : s.polygons) tris.push_back({p[0], p[1], p[2]});
+    return tris;
+  };
+  {
+    lapmesh::io::Polygon_soup two_fans = shuffled_cone(1000, false, 3);
+    two_fans.polygons.erase(std::remove_if(two_fans.polygons.begin(), two_fans.polygons.end(),
+                                           [](const std::vector<std::size_t>& p) {
+                                             return *std::max_element(p.begin(), p.end()) == 501;
+                                           }),
+                            two_fans.polygons.end());
+    Mesh m;
+    EXPECT_FALSE(lapmesh::internal::build_manifold_surface_mesh(two_fans.points, as_given(two_fans), m));
+    lapmesh::io::Polygon_soup turned = shuffled_cone(1000, false, 4);
+    for(auto& p : turned.polygons)
+      if(*std::max_element(p.begin(), p.end()) <= 500) std::swap(p[0], p[1]);
+    EXPECT_FALSE(lapmesh::internal::build_manifold_surface_mesh(turned.points, as_given(turned), m));
+    EXPECT_TRUE(lapmesh::internal::build_manifold_surface_mesh(turned.points, lapmesh::io::soup_to_triangles(turned), m));
+  }
+  // Two cones of 3000 faces meeting at their apex: add_face() would turn around the apex for
+  // each face, so they are stored apart (and welded back by input_vertex).
+  {
+    lapmesh::io::Polygon_soup two_cones = shuffled_cone(3000, true, 5);
+    const std::size_t second = two_cones.points.size();
+    for(std::size_t i = 1; i < second; ++i)
+      two_cones.points.push_back({two_cones.points[i][0], two_cones.points[i][1], 2.0});
+    const std::size_t faces = two_cones.polygons.size();
+    for(std::size_t f = 0; f < faces; ++f) {
+      std::vector<std::size_t> p = two_cones.polygons[f];
+      for(std::size_t& v : p)
+        if(v != 0) v += second - 1;
+      two_cones.polygons.push_back(p);
+    }
+    const auto tris = lapmesh::io::soup_to_triangles(two_cones);
+    EXPECT_FALSE(lapmesh::internal::face_by_face_is_affordable(two_cones.points.size(), tris));
+    Mesh m;
+    std::vector<std::size_t> input_vertex;
+    lapmesh::io::triangles_to_mesh(two_cones, tris, m, &input_vertex);
+    EXPECT_EQ(m.number_of_faces(), tris.size());
+    ASSERT_EQ(input_vertex.size(), 3 * tris.size());
+    for(std::size_t c = 0; c < input_vertex.size(); ++c) EXPECT_EQ(input_vertex[c], tris[c / 3][c % 3]);
+  }
+  EXPECT_TRUE(lapmesh::internal::face_by_face_is_affordable(soup.points.size(), refused[0].second));
   // Faces meeting at a vertex only: add_face() holds them, as it did before the fast path.
   Mesh bowtie;
   std::vector<std::size_t> input_vertex;

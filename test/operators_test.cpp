@@ -4,6 +4,7 @@
 // the uniform operator read off the graph's edges equal to the general path.
 #include "test_helpers.h"
 
+#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/laplacian.h>
 
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -329,6 +330,11 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   expect_uniform_paths_equal(to_mesh(lapmesh::icosphere(3)), "icosphere");
   expect_uniform_paths_equal(to_mesh(lapmesh::plane_patch(9, 0.3)), "plane patch (boundary)");
   expect_uniform_paths_equal(to_mesh<Polyhedron>(lapmesh::torus(20, 12)), "torus as a Polyhedron_3");
+  lapmesh::Triangle_soup cone;  // an apex of 300 faces: a row past the insertion sort
+  for(int k = 0; k < 300; ++k) cone.points.push_back({std::cos(2 * M_PI * k / 300), std::sin(2 * M_PI * k / 300), 0});
+  cone.points.push_back({0, 0, 1});
+  for(int k = 0; k < 300; ++k) cone.triangles.push_back({k, (k + 1) % 300, 300});
+  expect_uniform_paths_equal(to_mesh(cone), "a cone of 300 faces");
 
   // Two components, a vertex in no face, and an edge in no face between two corners of the
   // patch, linked into both corners' circulations through their border halfedges: it is no
@@ -618,8 +624,9 @@ std::pair<int, std::vector<int>> shuffled(std::pair<int, std::vector<int>> mesh,
 
 // The pattern rows against a reference built from a map of halfedges: for the slot (i, j), the
 // corner opposite i->j and the corner opposite j->i. The meshes cover interior vertices of up to
-// 8 corners, of 9 to 16 and of more (an apex of 7, 8, 9, 16, 17 and 24 corners; two apexes glued
-// into one), boundary vertices, and shuffled vertex numbers.
+// 8 corners, of 9 to 16 and of more (an apex of 7, 8, 9, 16, 17, 24, 33 and 300 corners, the last
+// two past the insertion sort; two apexes glued into one), boundary vertices, and shuffled
+// vertex numbers.
 TEST(Operators, PatternRowsEqualAHalfedgeMapReference)
 {
   std::vector<std::pair<std::string, std::pair<int, std::vector<int>>>> cases = {
@@ -628,7 +635,7 @@ TEST(Operators, PatternRowsEqualAHalfedgeMapReference)
     {"torus", flat(lapmesh::torus(9, 7))},
     {"two bipyramids glued at an apex (10 corners there)", glued_at_a_vertex(bipyramid(5), bipyramid(5), 5, 5)},
     {"two bipyramids glued at an apex (18 corners there)", shuffled(glued_at_a_vertex(bipyramid(9), bipyramid(9), 9, 9), 3)}};
-  for(int n : {7, 8, 9, 16, 17, 24}) cases.push_back({"bipyramid " + std::to_string(n), shuffled(bipyramid(n), unsigned(n))});
+  for(int n : {7, 8, 9, 16, 17, 24, 33, 300}) cases.push_back({"bipyramid " + std::to_string(n), shuffled(bipyramid(n), unsigned(n))});
   for(const auto& [what, mesh] : cases) {
     const auto& [n, tri] = mesh;
     std::map<std::pair<int, int>, std::array<int, 2>> slots;
@@ -666,6 +673,33 @@ TEST(Operators, PatternRowsEqualAHalfedgeMapReference)
     EXPECT_EQ(t.on_boundary, on_boundary) << what;
     EXPECT_EQ(t.num_edges, edges) << what;
     EXPECT_EQ(t.num_boundary_edges, boundary_edges) << what;
+  }
+}
+
+// Rows are sorted by insertion up to max_insertion_sorted_row entries and by std::stable_sort
+// beyond: both against std::stable_sort of (key, value) pairs, keys with many repeats.
+TEST(Operators, RowSortIsStableOnShortAndLongRows)
+{
+  std::mt19937 random(11);
+  for(std::size_t count : {std::size_t(0), std::size_t(1), std::size_t(7), lapmesh::internal::max_insertion_sorted_row,
+                           lapmesh::internal::max_insertion_sorted_row + 1, std::size_t(2000)}) {
+    std::vector<int> keys(count);
+    std::vector<double> values(count);
+    for(std::size_t k = 0; k < count; ++k) {
+      keys[k] = int(random() % (count / 4 + 1));
+      values[k] = double(k);
+    }
+    std::vector<std::pair<int, double>> expected(count);
+    for(std::size_t k = 0; k < count; ++k) expected[k] = {keys[k], values[k]};
+    std::stable_sort(expected.begin(), expected.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<int> keys_alone = keys;
+    lapmesh::internal::sort_row(keys.data(), count, values.data());
+    lapmesh::internal::sort_row(keys_alone.data(), count);
+    for(std::size_t k = 0; k < count; ++k) {
+      EXPECT_EQ(keys[k], expected[k].first) << count << " entries, entry " << k;
+      EXPECT_EQ(values[k], expected[k].second) << count << " entries, entry " << k;
+      EXPECT_EQ(keys_alone[k], expected[k].first) << count << " entries, entry " << k;
+    }
   }
 }
 

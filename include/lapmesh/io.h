@@ -97,7 +97,10 @@ inline Polygon_soup read_polygon_soup(const std::string& path)
 /// cannot hold as it is (a non-manifold edge or vertex, faces that disagree in
 /// orientation) is stored with each face on vertices of its own, and `input_vertex` (when
 /// given) receives the input vertex of every vertex of `g`, to weld them back through the
-/// `vertex_index_map` named parameter; it is left empty otherwise.
+/// `vertex_index_map` named parameter; it is left empty otherwise. So is, when `input_vertex`
+/// is given, a mesh that a Surface_mesh cannot be built for at once (not a manifold surface,
+/// or `g` of another type) and that has vertices of very many faces
+/// (internal::face_by_face_is_affordable()).
 template <typename MutableFaceGraph>
 void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<std::size_t, 3>>& tris, MutableFaceGraph& g,
                        std::vector<std::size_t>* input_vertex = nullptr)
@@ -111,26 +114,31 @@ void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<st
   if constexpr(lapmesh::internal::is_surface_mesh<MutableFaceGraph>::value) {
     if(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, g)) return;
   }
-  CGAL::clear(g);
-  auto vpm = get(CGAL::vertex_point, g);
-  std::vector<typename GT::vertex_descriptor> vs;
-  vs.reserve(soup.points.size());
-  for(const auto& p : soup.points) {
-    vs.push_back(add_vertex(g));
-    put(vpm, vs.back(), Point(p[0], p[1], p[2]));
+  // add_face() finds each edge of a face by turning around its vertex: a vertex of d faces
+  // costs it d^2 steps, so that one of very many faces would keep it busy far longer than any
+  // computation on the mesh. Such a mesh, when it may be stored apart, is not added face by face.
+  if(!input_vertex || lapmesh::internal::face_by_face_is_affordable(soup.points.size(), tris)) {
+    CGAL::clear(g);
+    auto vpm = get(CGAL::vertex_point, g);
+    std::vector<typename GT::vertex_descriptor> vs;
+    vs.reserve(soup.points.size());
+    for(const auto& p : soup.points) {
+      vs.push_back(add_vertex(g));
+      put(vpm, vs.back(), Point(p[0], p[1], p[2]));
+    }
+    bool held = true;
+    for(std::size_t f = 0; f < tris.size() && held; ++f) {
+      const std::array<typename GT::vertex_descriptor, 3> face = {vs[tris[f][0]], vs[tris[f][1]], vs[tris[f][2]]};
+      held = CGAL::Euler::add_face(face, g) != GT::null_face();
+    }
+    if(held) return;
   }
-  bool held = true;
-  for(std::size_t f = 0; f < tris.size() && held; ++f) {
-    const std::array<typename GT::vertex_descriptor, 3> face = {vs[tris[f][0]], vs[tris[f][1]], vs[tris[f][2]]};
-    held = CGAL::Euler::add_face(face, g) != GT::null_face();
-  }
-  if(held) return;
   if(!input_vertex)
     throw Mesh_error("the mesh has non-manifold edges or vertices, or faces that disagree in orientation: it "
                      "can only be read with its faces stored apart (give triangles_to_mesh an input_vertex)");
   // Each face on vertices of its own, then the vertices in no face, in input order.
   CGAL::clear(g);
-  vpm = get(CGAL::vertex_point, g);
+  auto vpm = get(CGAL::vertex_point, g);
   std::vector<char> in_face(soup.points.size(), 0);
   input_vertex->reserve(3 * tris.size());
   for(const auto& t : tris) {

@@ -19,6 +19,7 @@
 #define LAPMESH_INTERNAL_INTRINSIC_TRIANGULATION_H
 
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
@@ -420,23 +421,13 @@ inline void assemble_intrinsic_pencil(const Intrinsic_triangulation& it, Vertex_
       value[fill[j]++] = w;
     }
   }
-  // Sort each column by row (insertion sort: columns are short), merge repeated rows, set the
-  // diagonal to minus the column's off-diagonal sum, and pack the columns to the front.
+  // Sort each column by row, merge repeated rows, set the diagonal to minus the column's
+  // off-diagonal sum, and pack the columns to the front.
   Index* outer = stiffness.outerIndexPtr();
   Index out = 0;
   for(Index i = 0; i < n; ++i) {
     const Index first = start[i], last = start[i + 1];
-    for(Index k = first + 1; k < last; ++k) {
-      const Index r = row[k];
-      const double v = value[k];
-      Index q = k;
-      for(; q > first && row[q - 1] > r; --q) {
-        row[q] = row[q - 1];
-        value[q] = value[q - 1];
-      }
-      row[q] = r;
-      value[q] = v;
-    }
+    sort_row(row + first, std::size_t(last - first), value + first);
     outer[i] = out;
     double off_diagonal = 0;
     Index diagonal = -1;

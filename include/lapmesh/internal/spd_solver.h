@@ -18,6 +18,7 @@
 #include <lapmesh/internal/cholmod.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/subnormals.h>
+#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/internal/topology.h>
 
 #include <Eigen/Core>
@@ -79,11 +80,7 @@ public:
         m_source.push_back(k);
       }
       // Rows in increasing order, as the solvers expect; in a given order they come unsorted.
-      for(std::size_t a = begin + 1; a < a_inner.size(); ++a)
-        for(std::size_t b = a; b > begin && a_inner[b - 1] > a_inner[b]; --b) {
-          std::swap(a_inner[b - 1], a_inner[b]);
-          std::swap(m_source[b - 1], m_source[b]);
-        }
+      sort_row(a_inner.data() + begin, a_inner.size() - begin, m_source.data() + begin);
       if(a_inner.size() == begin || a_inner[begin] != c)
         throw std::logic_error("Constrained_spd_system: the pattern lacks a diagonal entry");
       m_diagonal[c] = Index(begin);

@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -60,32 +61,36 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   // k's next vertex). Until the halfedges are numbered below, corner_halfedge holds
   // -2 - (the opposite corner), or -1 where there is none.
   std::vector<Index> corner_halfedge(std::size_t(corners), -1);
-  std::vector<Index> ring_next, ring_prev, ring_after;
+  // Around vertex a, which of its corners k has b as its next vertex: next_of[b] = {a, k}.
+  // Looking the neighbours up there keeps a vertex of any degree linear.
+  std::vector<std::array<Index, 2>> next_of(std::size_t(n), {-1, -1});
+  std::vector<Index> ring_after;
+  std::vector<char> has_before;
   for(Index a = 0; a < n; ++a) {
     const Index first = begin[std::size_t(a)], degree = begin[std::size_t(a) + 1] - first;
     if(degree == 0) continue;
     const Index* ring = &vertex_corners[std::size_t(first)];
-    ring_next.resize(std::size_t(degree));
-    ring_prev.resize(std::size_t(degree));
     ring_after.assign(std::size_t(degree), -1);
+    has_before.assign(std::size_t(degree), 0);
     for(Index k = 0; k < degree; ++k) {
-      ring_next[std::size_t(k)] = vertex_of(next_corner(ring[k]));
-      ring_prev[std::size_t(k)] = vertex_of(prev_corner(ring[k]));
+      const Index b = vertex_of(next_corner(ring[k]));
+      if(next_of[std::size_t(b)][0] == a) return false;  // a -> b twice
+      next_of[std::size_t(b)] = {a, k};
+    }
+    for(Index j = 0; j < degree; ++j) {
+      const Index b = vertex_of(prev_corner(ring[j]));
+      if(next_of[std::size_t(b)][0] != a) continue;
+      const Index k = next_of[std::size_t(b)][1];  // face j follows face k around a
+      Index& after = ring_after[std::size_t(k)];
+      if(after >= 0) return false;  // b -> a twice
+      after = j;
+      has_before[std::size_t(j)] = 1;
     }
     Index open_fans = 0, fan_start = 0;
     for(Index k = 0; k < degree; ++k) {
-      Index& after = ring_after[std::size_t(k)];
-      bool has_before = false;
-      for(Index j = 0; j < degree; ++j) {
-        if(j != k && ring_next[std::size_t(j)] == ring_next[std::size_t(k)]) return false;  // a -> b twice
-        if(ring_prev[std::size_t(j)] == ring_next[std::size_t(k)]) {
-          if(after >= 0) return false;  // b -> a twice
-          after = j;
-        }
-        has_before = has_before || ring_next[std::size_t(j)] == ring_prev[std::size_t(k)];
-      }
+      const Index after = ring_after[std::size_t(k)];
       if(after >= 0) corner_halfedge[std::size_t(ring[k])] = -2 - prev_corner(ring[after]);
-      if(!has_before) {
+      if(!has_before[std::size_t(k)]) {
         ++open_fans;
         fan_start = k;
       }
@@ -160,6 +165,23 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   }
 
   return true;
+}
+
+/// The mean number of faces around a vertex, weighted by that number, above which adding the
+/// faces one at a time (CGAL::Euler::add_face(), whose cost grows with it) is not tried.
+constexpr std::uint64_t max_face_by_face_degree = 64;
+
+/// Whether CGAL::Euler::add_face() takes time linear in the size of the mesh for these
+/// triangles: the sum over the vertices of the square of their number of faces is at most
+/// max_face_by_face_degree times the number of corners (a usual mesh has about 6).
+inline bool face_by_face_is_affordable(std::size_t num_points, const std::vector<std::array<std::size_t, 3>>& triangles)
+{
+  std::vector<std::uint32_t> faces_at(num_points, 0);
+  for(const auto& t : triangles)
+    for(std::size_t v : t) ++faces_at[v];
+  std::uint64_t squares = 0;
+  for(std::uint32_t d : faces_at) squares += std::uint64_t(d) * d;
+  return squares <= max_face_by_face_degree * 3 * std::uint64_t(triangles.size());
 }
 
 } // namespace internal

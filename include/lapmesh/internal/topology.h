@@ -15,6 +15,7 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
+#include <lapmesh/internal/row_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -543,8 +544,8 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
   const std::vector<Index>& tri = t.triangles;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
   // i, opposite the corner at r) and r->i (opposite q). They are packed as
-  // (neighbour << 33 | side << 32 | corner) so that a plain integer insertion sort (rows
-  // hold ~12 entries) orders them by neighbour, then side.
+  // (neighbour << 33 | side << 32 | corner) so that sorting them as integers orders them by
+  // neighbour, then side.
   std::vector<std::uint64_t> ring;
   if(!rows.slice_inner) rows.reserve(7 * std::size_t(last - first));
   for(Index i = first; i < last; ++i) {
@@ -566,12 +567,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
       ring.push_back(std::uint64_t(tri[cq]) << 33 | std::uint64_t(cr));
       ring.push_back(std::uint64_t(tri[cr]) << 33 | std::uint64_t(1) << 32 | std::uint64_t(cq));
     }
-    for(std::size_t a = 1; a < ring.size(); ++a) {
-      const std::uint64_t key = ring[a];
-      std::size_t b = a;
-      for(; b > 0 && ring[b - 1] > key; --b) ring[b] = ring[b - 1];
-      ring[b] = key;
-    }
+    sort_row(ring.data(), ring.size());
     bool diagonal_done = false;
     auto emit_diagonal = [&] {
       t.diagonal_slot[i] = static_cast<Index>(rows.size);

@@ -11,6 +11,7 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
@@ -107,12 +108,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     const Index begin = outer[r], end = outer[r + 1];
     if(begin == end) continue;  // a vertex in no face
     inner[end - 1] = r;
-    for(Index a = begin + 1; a < end; ++a) {  // rows hold ~7 entries
-      const Index key = inner[a];
-      Index b = a;
-      for(; b > begin && inner[b - 1] > key; --b) inner[b] = inner[b - 1];
-      inner[b] = key;
-    }
+    sort_row(inner + begin, std::size_t(end - begin));
     for(Index a = begin; a < end; ++a) {
       if(a > begin && inner[a - 1] == inner[a]) return false;  // two edges between the same vertices
       value[a] = inner[a] == r ? -double(end - begin - 1) : 1.0;
