@@ -703,6 +703,39 @@ TEST(Operators, RowSortIsStableOnShortAndLongRows)
   }
 }
 
+// Vertices in no face first, in the middle and last: the stiffness is the one of the mesh
+// without them, each entry moved to the rows of its vertices, their columns empty.
+TEST(Operators, RowsInNoFaceAreEmptyColumnsOfTheSameMatrix)
+{
+  const lapmesh::Triangle_soup soup = lapmesh::icosphere(2);
+  Mesh spread;
+  std::vector<Mesh::Vertex_index> vs;
+  spread.add_vertex(Point(5, 5, 5));
+  for(std::size_t i = 0; i < soup.points.size(); ++i) {
+    if(i == soup.points.size() / 2) spread.add_vertex(Point(6, 5, 5));
+    vs.push_back(spread.add_vertex(Point(soup.points[i][0], soup.points[i][1], soup.points[i][2])));
+  }
+  spread.add_vertex(Point(7, 5, 5));
+  for(const auto& t : soup.triangles) spread.add_face(vs[std::size_t(t[0])], vs[std::size_t(t[1])], vs[std::size_t(t[2])]);
+  for(lapmesh::Laplacian kind : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
+    const auto a = lapmesh::laplacian_pencil(to_mesh(soup), LP::laplacian(kind));
+    const auto b = lapmesh::laplacian_pencil(spread, LP::laplacian(kind));
+    std::vector<Eigen::Triplet<double>> entries;
+    for(int j = 0; j < a.stiffness.outerSize(); ++j)
+      for(Eigen::SparseMatrix<double>::InnerIterator it(a.stiffness, j); it; ++it)
+        entries.emplace_back(int(vs[std::size_t(it.row())].idx()), int(vs[std::size_t(it.col())].idx()), it.value());
+    Eigen::SparseMatrix<double> expected(b.stiffness.rows(), b.stiffness.cols());
+    expected.setFromTriplets(entries.begin(), entries.end());
+    ASSERT_EQ(b.stiffness.rows(), Eigen::Index(soup.points.size() + 3));
+    EXPECT_TRUE(b.stiffness.isCompressed());
+    EXPECT_EQ(b.stiffness.nonZeros(), a.stiffness.nonZeros());
+    EXPECT_EQ((b.stiffness - expected).norm(), 0.0);
+    for(int j = 0; j < b.stiffness.outerSize(); ++j)  // rows strictly increasing in each column
+      for(int k = b.stiffness.outerIndexPtr()[j] + 1; k < b.stiffness.outerIndexPtr()[j + 1]; ++k)
+        EXPECT_LT(b.stiffness.innerIndexPtr()[k - 1], b.stiffness.innerIndexPtr()[k]);
+  }
+}
+
 TEST(Operators, CornerTopologyEqualsTheFullOne)
 {
   using lapmesh::internal::build_corner_topology;

@@ -62,7 +62,7 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
                             internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
                             internal::choose_mollification(np));
   if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
-    mesh.to_rows(out.stiffness).swap(out.stiffness);
+    mesh.move_to_rows(out.stiffness);
     out.mass = mesh.to_rows(out.mass, 0.0);
   }
   return out;

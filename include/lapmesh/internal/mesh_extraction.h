@@ -82,7 +82,8 @@ struct Extracted_mesh
   Positions positions;                      ///< per topology vertex
   std::vector<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
   Index num_rows = 0;                       ///< rows of the numbering (results' size)
-  /// The row of each topology vertex; empty when every row is in a face (the identity).
+  /// The row of each topology vertex, increasing; empty when every row is in a face (the
+  /// identity).
   std::vector<Index> row;
   /// Every vertex with its row, in `vertices(tm)` order.
   std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
@@ -148,18 +149,26 @@ struct Extracted_mesh
     for(Index i = 0; i < Index(row.size()); ++i) out[row[i]] = values[i];
     return out;
   }
-  /// A matrix over the topology's vertices as one over the rows (zero in rows in no face).
-  Eigen::SparseMatrix<double> to_rows(const Eigen::SparseMatrix<double>& A) const
+  /// Turns a matrix over the topology's vertices into the same one over the rows (zero in
+  /// rows in no face), in place. `row` is increasing, so each column keeps its entries in
+  /// order: only their rows change, and the columns of rows in no face are empty. The entries
+  /// are not copied (Eigen 3.4 would copy a returned SparseMatrix: fresh pages for all of it).
+  void move_to_rows(Eigen::SparseMatrix<double>& A) const
   {
-    if(row.empty()) return A;
-    std::vector<Eigen::Triplet<double, Index>> entries;
-    entries.reserve(std::size_t(A.nonZeros()));
-    for(Index j = 0; j < A.outerSize(); ++j)
-      for(Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
-        entries.emplace_back(row[it.row()], row[it.col()], it.value());
+    if(row.empty()) return;
+    A.makeCompressed();
     Eigen::SparseMatrix<double> out(num_rows, num_rows);
-    out.setFromTriplets(entries.begin(), entries.end());
-    return out;
+    out.data().swap(A.data());
+    Index* const outer = out.outerIndexPtr();
+    Index* const inner = out.innerIndexPtr();
+    const Index* const old_outer = A.outerIndexPtr();
+    Index column = 0;
+    for(Index j = 0; j < Index(row.size()); ++j) {
+      for(; column <= row[j]; ++column) outer[column] = old_outer[j];
+      for(Index k = old_outer[j]; k < old_outer[j + 1]; ++k) inner[k] = row[inner[k]];
+    }
+    for(; column <= num_rows; ++column) outer[column] = old_outer[row.size()];
+    A.swap(out);
   }
 };
 
@@ -355,12 +364,17 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
     out.vertices = std::move(arrays.vertices);
     return out;
   }
+  // Rows in no face are left out of the computation. Their corner lists are empty, so the
+  // lists of the others stay as they are, their starts moved down over the empty ones.
   std::vector<Index> topology_vertex(n, -1);
   Index used = 0;
   for(Index r = 0; r < n; ++r)
-    if(incidence.corner_begin[std::size_t(r) + 1] > incidence.corner_begin[std::size_t(r)]) topology_vertex[r] = used++;
-  incidence = Corner_incidence();
-  // Rows in no face are left out of the computation.
+    if(incidence.corner_begin[std::size_t(r) + 1] > incidence.corner_begin[std::size_t(r)]) {
+      incidence.corner_begin[std::size_t(used)] = incidence.corner_begin[std::size_t(r)];
+      topology_vertex[r] = used++;
+    }
+  incidence.corner_begin[std::size_t(used)] = Index(arrays.triangles.size());
+  incidence.corner_begin.resize(std::size_t(used) + 1);
   out.row.resize(used);
   out.positions.resize(used, 3);
   out.vertices.resize(used);
@@ -371,7 +385,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
       out.vertices[topology_vertex[r]] = arrays.vertices[r];
     }
   for(Index& v : arrays.triangles) v = topology_vertex[v];
-  out.topology = topology(used, std::move(arrays.triangles), {});
+  out.topology = topology(used, std::move(arrays.triangles), std::move(incidence));
   return out;
 }
 
