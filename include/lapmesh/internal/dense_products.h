@@ -13,6 +13,8 @@
 #ifndef LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 #define LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 
+#include <lapmesh/internal/cpu_features.h>
+
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -310,8 +312,7 @@ __attribute__((target("avx2,fma"))) inline void subtract_avx2(Columns V, Index n
 inline bool use_avx2()
 {
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
-  static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return avx2;
+  return cpu_has_avx2_fma();
 #else
   return false;
 #endif

@@ -13,6 +13,8 @@
 #ifndef LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 #define LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 
+#include <lapmesh/internal/cpu_features.h>
+
 #include <cassert>
 #include <cstddef>
 #include <cstring>
@@ -261,8 +263,7 @@ inline std::size_t supernodal_row_width(std::size_t width) { return width == 3 |
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
-  static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  if(avx2) {
+  if(cpu_has_avx2_fma()) {
     supernodal_kernels::solve_avx2(L, X, width);
     return;
   }

@@ -45,14 +45,10 @@ bool build_manifold_surface_mesh(const std::vector<std::array<double, 3>>& point
   const auto vertex_of = [&](Index c) { return Index(triangles[std::size_t(c) / 3][std::size_t(c) % 3]); };
 
   // Each vertex's corners, in corner order.
-  std::vector<Index> begin(std::size_t(n) + 1, 0);
+  std::vector<Index> begin(std::size_t(n) + 1);
   std::vector<Index> vertex_corners(static_cast<std::size_t>(corners));
-  for(Index c = 0; c < corners; ++c) ++begin[std::size_t(vertex_of(c)) + 1];
-  for(Index v = 0; v < n; ++v) begin[std::size_t(v) + 1] += begin[std::size_t(v)];
-  {
-    std::vector<Index> fill(begin.begin(), begin.end() - 1);
-    for(Index c = 0; c < corners; ++c) vertex_corners[std::size_t(fill[std::size_t(vertex_of(c))]++)] = c;
-  }
+  counting_sort_corners(n, std::size_t(corners), [&vertex_of](std::size_t c) { return vertex_of(Index(c)); },
+                        begin.data(), vertex_corners.data());
 
   // The halfedge of corner c runs from its vertex a to the next corner's, b. Its opposite runs
   // from b to a: the halfedge of the corner before a corner of a whose previous vertex is b.

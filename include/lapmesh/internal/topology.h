@@ -241,9 +241,35 @@ struct Corner_incidence
   }
 };
 
-/// Each vertex's incident corners, after checking the faces (require_valid_faces()): a counting
-/// sort. Each vertex's count is kept at corner_begin[v + 1] and turned, by an exclusive prefix
-/// sum in place, into the cursor of its list, which ends as its end.
+/// Turns the corner counts of vertices first .. last - 1 at cursor[v] into the starts of their
+/// lists, the first one at `start`.
+inline void counts_to_cursors(Index* cursor, Index first, Index last, std::size_t start)
+{
+  for(Index v = first; v < last; ++v) {
+    const Index count = cursor[v];
+    cursor[v] = Index(start);
+    start += std::size_t(count);
+  }
+}
+
+/// Each vertex's corners in ascending order, serially: vertex v's are
+/// vertex_corners[begin[v] .. begin[v + 1]), where `begin` holds n + 1 entries and
+/// `vertex_corners` one per corner; vertex_of(c) is corner c's vertex, in 0..n-1. A counting
+/// sort: each vertex's count is kept at begin[v + 1] and turned, by an exclusive prefix sum in
+/// place, into the cursor of its list, which ends as its end.
+template <typename VertexOf>
+void counting_sort_corners(Index n, std::size_t corners, const VertexOf& vertex_of, Index* begin, Index* vertex_corners)
+{
+  Index* const cursor = begin + 1;
+  begin[0] = 0;
+  std::fill(cursor, cursor + n, Index(0));
+  for(std::size_t c = 0; c < corners; ++c) ++cursor[vertex_of(c)];
+  counts_to_cursors(cursor, 0, n, 0);
+  for(std::size_t c = 0; c < corners; ++c) vertex_corners[std::size_t(cursor[vertex_of(c)]++)] = Index(c);
+}
+
+/// Each vertex's incident corners, after checking the faces (require_valid_faces()): serially
+/// counting_sort_corners().
 ///
 /// In parallel each thread counts, sums and fills the lists of one range of vertices, and the
 /// ranges' corners start where the ranges before them end. A range finds its corners by
@@ -262,19 +288,9 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
   out.corner_begin[0] = 0;
   out.vertex_corners.resize(corners);
   Index* const cursor = out.corner_begin.data() + 1;
-  // Counts of the vertices first .. last - 1 into cursors, their corners starting at `start`.
-  const auto counts_to_cursors = [cursor](Index first, Index last, std::size_t start) {
-    for(Index v = first; v < last; ++v) {
-      const Index count = cursor[v];
-      cursor[v] = Index(start);
-      start += std::size_t(count);
-    }
-  };
   if(ranges == 1) {
-    std::fill(cursor, cursor + n, Index(0));
-    for(Index v : tri) ++cursor[v];
-    counts_to_cursors(0, n, 0);
-    for(std::size_t c = 0; c < corners; ++c) out.vertex_corners[std::size_t(cursor[tri[c]]++)] = Index(c);
+    counting_sort_corners(n, corners, [&tri](std::size_t c) { return tri[c]; }, out.corner_begin.data(),
+                          out.vertex_corners.data());
     return out;
   }
   // range_of(v) = floor(v * scale / 2^32) is monotone and below `ranges` for v < n, and needs no
@@ -364,7 +380,7 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
   // The sorted ranges get the starts their histogram gave them; the others learn theirs here.
   for(std::size_t r = 0; r < width; ++r) range_start[r + 1] = range_start[r] + range_count[r];
   for_each_part(ranges, Index(1), true, [&](Index r, Index, Index) {
-    counts_to_cursors(range_first[std::size_t(r)], range_first[std::size_t(r) + 1], range_start[std::size_t(r)]);
+    counts_to_cursors(cursor, range_first[std::size_t(r)], range_first[std::size_t(r) + 1], range_start[std::size_t(r)]);
     for_each_corner_of_range(r, [&](Index v, Index c) { out.vertex_corners[std::size_t(cursor[v]++)] = c; });
   });
   return out;
