@@ -26,6 +26,7 @@
 #include <lapmesh/colormap.h>
 #include <lapmesh/errors.h>
 #include <lapmesh/laplacian.h>
+#include <lapmesh/shapes.h>
 
 #include <lapmesh/internal/atomic_file.h>
 #include <lapmesh/internal/io_input.h>
@@ -119,19 +120,7 @@ void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<st
   // computation on the mesh. Such a mesh, when it may be stored apart, is not added face by face.
   if(!input_vertex || lapmesh::internal::face_by_face_is_affordable(soup.points.size(), tris)) {
     CGAL::clear(g);
-    auto vpm = get(CGAL::vertex_point, g);
-    std::vector<typename GT::vertex_descriptor> vs;
-    vs.reserve(soup.points.size());
-    for(const auto& p : soup.points) {
-      vs.push_back(add_vertex(g));
-      put(vpm, vs.back(), Point(p[0], p[1], p[2]));
-    }
-    bool held = true;
-    for(std::size_t f = 0; f < tris.size() && held; ++f) {
-      const std::array<typename GT::vertex_descriptor, 3> face = {vs[tris[f][0]], vs[tris[f][1]], vs[tris[f][2]]};
-      held = CGAL::Euler::add_face(face, g) != GT::null_face();
-    }
-    if(held) return;
+    if(lapmesh::internal::add_face_by_face(soup.points, tris, g)) return;
   }
   if(!input_vertex)
     throw Mesh_error("the mesh has non-manifold edges or vertices, or faces that disagree in orientation: it "

@@ -30,26 +30,36 @@ struct Triangle_soup
   std::vector<std::array<int, 3>> triangles;  ///< counter-clockwise seen from outside
 };
 
-/// Builds the soup into an (empty or not) mutable face graph; vertex i of the soup becomes
-/// the i-th added vertex. Returns false if a face could not be added (non-manifold soup).
-template <typename MutableFaceGraph>
-bool make_mesh(const Triangle_soup& soup, MutableFaceGraph& g)
+namespace internal {
+/// Adds the points to `g` as vertices (vertex i = point i) and then the triangles one at a time
+/// with CGAL::Euler::add_face(); returns false at the first face it refuses.
+template <typename Points, typename Triangles, typename MutableFaceGraph>
+bool add_face_by_face(const Points& points, const Triangles& triangles, MutableFaceGraph& g)
 {
   using GT = boost::graph_traits<MutableFaceGraph>;
   using Point = typename boost::property_traits<
     typename boost::property_map<MutableFaceGraph, CGAL::vertex_point_t>::type>::value_type;
   auto vpm = get(CGAL::vertex_point, g);
   std::vector<typename GT::vertex_descriptor> vs;
-  vs.reserve(soup.points.size());
-  for(const auto& p : soup.points) {
+  vs.reserve(points.size());
+  for(const auto& p : points) {
     vs.push_back(add_vertex(g));
     put(vpm, vs.back(), Point(p[0], p[1], p[2]));
   }
-  for(const auto& t : soup.triangles) {
+  for(const auto& t : triangles) {
     const std::array<typename GT::vertex_descriptor, 3> f = {vs[t[0]], vs[t[1]], vs[t[2]]};
     if(CGAL::Euler::add_face(f, g) == GT::null_face()) return false;
   }
   return true;
+}
+} // namespace internal
+
+/// Builds the soup into an (empty or not) mutable face graph; vertex i of the soup becomes
+/// the i-th added vertex. Returns false if a face could not be added (non-manifold soup).
+template <typename MutableFaceGraph>
+bool make_mesh(const Triangle_soup& soup, MutableFaceGraph& g)
+{
+  return internal::add_face_by_face(soup.points, soup.triangles, g);
 }
 
 /// Icosahedron subdivided `level` times, projected on the sphere of radius r:
