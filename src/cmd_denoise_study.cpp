@@ -373,12 +373,13 @@ void register_denoise_study(CLI::App& app)
   cmd->footer(
     "For each noise level (sigma = level x mean edge length, the same seed for every level), scheme, Laplacian\n"
     "and lambda, smooths the noisy mesh for --iterations steps and measures after every step: RMS vertex\n"
-    "distance and symmetric Hausdorff distance (CGAL, grid sampling) over the bounding-box diagonal, mean angle\n"
-    "between area-weighted vertex normals (degrees), relative volume change (closed meshes). CSV: one row per\n"
-    "(level, scheme, laplacian, lambda, iteration), iteration 0 being the noisy mesh. Runs whose RMS error\n"
-    "exceeds one bbox diagonal stop as 'diverged'. Prints the best lambda and iteration count per level and\n"
-    "scheme (smallest RMS distance). --lambda-unit edge2: lambda x mean edge length^2 of the noisy mesh\n"
-    "(cotangent; the uniform Laplacian's lambda is dimensionless); bound: lambda x the explicit stability bound.\n"
+    "distance and symmetric Hausdorff distance (grid samples of vertices, edges, faces) over the bounding-box\n"
+    "diagonal, mean angle between area-weighted vertex normals (degrees), relative volume change (closed\n"
+    "meshes). CSV: one row per (level, scheme, laplacian, lambda, iteration), iteration 0 being the noisy\n"
+    "mesh. Runs whose RMS error exceeds one bbox diagonal stop as 'diverged'. Prints the best lambda and\n"
+    "iteration count per level and scheme (smallest RMS distance). --lambda-unit edge2: lambda x mean edge\n"
+    "length^2 of the noisy mesh (cotangent; the uniform Laplacian's lambda is dimensionless); bound: lambda x\n"
+    "the explicit stability bound.\n"
     "Runs stopped by an error are 'failed'; the CSV's last column, error, says why (e.g. a face the flow\n"
     "collapsed). The summary says when even the best run is further from the clean mesh than the noisy one.\n"
     "Progress goes to stderr: redrawn on a terminal, otherwise one line every --progress-interval seconds.\n");
@@ -397,7 +398,7 @@ void register_denoise_study(CLI::App& app)
   add_mollification_option(*cmd, o->mollification);
   cmd->add_flag("--restore-volume", o->restore_volume, "restore the enclosed volume after each step (closed meshes)");
   cmd->add_flag("--fixed-operator", o->fixed_operator, "keep the operator of the noisy mesh for all iterations");
-  cmd->add_option("--hausdorff-spacing", o->hausdorff_spacing, "Hausdorff sampling grid spacing, in mean edge lengths")
+  cmd->add_option("--hausdorff-spacing", o->hausdorff_spacing, "Hausdorff sampling grid spacing, in mean edge lengths (coarser where the grid would exceed 16 samples per corner)")
     ->capture_default_str();
   cmd->add_option("--plot", o->plot, "also write an SVG plot of the error vs iteration and vs lambda");
   cmd->add_flag("-q,--quiet", o->quiet, "print nothing on success (and no progress, unless --progress)");

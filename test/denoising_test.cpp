@@ -1,5 +1,6 @@
 // Denoising: the deviation metrics (zero on identical meshes, Hausdorff against a brute-force
-// point-to-triangle computation), their fall when a noisy sphere is smoothed, the study driver
+// point-to-triangle computation and against CGAL's on the same sampling grid, the point-to-mesh
+// search against CGAL's point-to-triangle distance over every face), their fall when a noisy sphere is smoothed, the study driver
 // (row count, per-iteration records equal to separate runs, divergence above the bound, best
 // lambda) and the command line's refusal of bad levels, lambdas and iteration counts.
 #include "test_helpers.h"
@@ -8,6 +9,9 @@
 #include <lapmesh/io.h>
 #include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/noise.h>
+
+#include <CGAL/Polygon_mesh_processing/distance.h>
+#include <CGAL/Surface_mesh.h>
 
 #include <Eigen/Dense>
 
@@ -34,45 +38,18 @@ Mesh jitter(Mesh m, double amount, unsigned seed)
   return m;
 }
 
-// Closest point on triangle abc to p, by regions (vertex, edge, interior).
-Eigen::Vector3d closest_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                                    const Eigen::Vector3d& c)
+std::vector<Kernel::Triangle_3> triangles_of(const Mesh& m)
 {
-  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if(d1 <= 0 && d2 <= 0) return a;
-  const Eigen::Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if(d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if(vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
-  const Eigen::Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if(d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if(vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if(va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
-  const double denom = 1.0 / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
-}
-
-std::vector<std::array<Eigen::Vector3d, 3>> triangles_of(const Mesh& m)
-{
-  std::vector<std::array<Eigen::Vector3d, 3>> out;
+  std::vector<Kernel::Triangle_3> out;
   for(auto f : faces(m)) {
-    std::array<Eigen::Vector3d, 3> t;
-    int k = 0;
-    for(auto v : vertices_around_face(halfedge(f, m), m)) {
-      const Point& p = m.point(v);
-      t[k++] = Eigen::Vector3d(p.x(), p.y(), p.z());
-    }
-    out.push_back(t);
+    const auto h = halfedge(f, m);
+    out.emplace_back(m.point(source(h, m)), m.point(target(h, m)), m.point(target(next(h, m), m)));
   }
   return out;
 }
 
-// max over a barycentric grid (r subdivisions per triangle) of `from` of the distance to `to`.
+// max over a barycentric grid (r subdivisions per triangle) of `from` of the distance to `to`,
+// by CGAL's point-to-triangle distance to every face.
 double brute_force_one_sided(const Mesh& from, const Mesh& to, int r)
 {
   const auto A = triangles_of(from), B = triangles_of(to);
@@ -80,12 +57,77 @@ double brute_force_one_sided(const Mesh& from, const Mesh& to, int r)
   for(const auto& t : A)
     for(int i = 0; i <= r; ++i)
       for(int j = 0; i + j <= r; ++j) {
-        const Eigen::Vector3d p = t[0] + (double(i) / r) * (t[1] - t[0]) + (double(j) / r) * (t[2] - t[0]);
+        const Point p = t[0] + (double(i) / r) * (t[1] - t[0]) + (double(j) / r) * (t[2] - t[0]);
         double best = std::numeric_limits<double>::infinity();
-        for(const auto& s : B) best = std::min(best, (closest_on_triangle(p, s[0], s[1], s[2]) - p).norm());
-        worst = std::max(worst, best);
+        for(const auto& s : B) best = std::min(best, CGAL::squared_distance(p, s));
+        worst = std::max(worst, std::sqrt(best));
       }
   return worst;
+}
+
+// n faces around one apex, lifted above a ring of n vertices, closed or with a gap, each face
+// turned so that its corners start at `first` (0, 1 or 2): the apex of every face at once.
+struct Triangles
+{
+  lapmesh::internal::Positions P;
+  std::vector<lapmesh::internal::Index> triangles;
+};
+
+Triangles fan(int n, bool closed, int first, double height = 0.1)
+{
+  Triangles t;
+  t.P.resize(n + 1, 3);
+  t.P.row(0) << 0, 0, height;
+  for(int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    t.P.row(i + 1) << std::cos(a), std::sin(a), 0.02 * std::sin(7 * a);
+  }
+  for(int i = 0; i < (closed ? n : n - 1); ++i) {
+    const std::array<lapmesh::internal::Index, 3> f{0, 1 + i, 1 + (i + 1) % n};
+    for(int k = 0; k < 3; ++k) t.triangles.push_back(f[(first + k) % 3]);
+  }
+  return t;
+}
+
+Triangles triangles_of_mesh(const Mesh& m)
+{
+  Triangles t;
+  t.P.resize(Eigen::Index(num_vertices(m)), 3);
+  for(auto v : vertices(m)) t.P.row(v.idx()) << m.point(v).x(), m.point(v).y(), m.point(v).z();
+  for(auto f : faces(m))
+    for(auto v : vertices_around_face(halfedge(f, m), m)) t.triangles.push_back(lapmesh::internal::Index(v.idx()));
+  return t;
+}
+
+// The nearest face by CGAL's point-to-triangle distance, or point-to-segment for a face without
+// area, over every face.
+double brute_force_squared_distance(const Triangles& t, const Eigen::Vector3d& q)
+{
+  const auto point = [&](lapmesh::internal::Index i) { return Point(t.P(i, 0), t.P(i, 1), t.P(i, 2)); };
+  const Point p(q.x(), q.y(), q.z());
+  double best = std::numeric_limits<double>::infinity();
+  for(std::size_t f = 0; f < t.triangles.size(); f += 3) {
+    const Point a = point(t.triangles[f]), b = point(t.triangles[f + 1]), c = point(t.triangles[f + 2]);
+    if(!CGAL::collinear(a, b, c)) {
+      best = std::min(best, CGAL::squared_distance(p, Kernel::Triangle_3(a, b, c)));
+      continue;
+    }
+    for(const auto& s : {std::make_pair(a, b), std::make_pair(b, c), std::make_pair(c, a)})
+      best = std::min(best, s.first == s.second ? CGAL::squared_distance(p, s.first)
+                                                : CGAL::squared_distance(p, Kernel::Segment_3(s.first, s.second)));
+  }
+  return best;
+}
+
+// The faces as a Surface_mesh built face by face, as CGAL's sampling sees them.
+Mesh surface_mesh_of(const Triangles& t)
+{
+  Mesh m;
+  for(Eigen::Index i = 0; i < t.P.rows(); ++i) m.add_vertex(Point(t.P(i, 0), t.P(i, 1), t.P(i, 2)));
+  for(std::size_t f = 0; f < t.triangles.size(); f += 3)
+    m.add_face(Mesh::Vertex_index(std::uint32_t(t.triangles[f])), Mesh::Vertex_index(std::uint32_t(t.triangles[f + 1])),
+               Mesh::Vertex_index(std::uint32_t(t.triangles[f + 2])));
+  return m;
 }
 
 double diagonal(const Mesh& m)
@@ -153,6 +195,103 @@ TEST(Denoising, HausdorffEqualsTheDisplacementOfAVertexAboveAPlane)
   lifted.point(apex) = Point(p.x(), p.y(), p.z() + h);
   const auto d = lapmesh::mesh_deviation(flat, lifted);
   EXPECT_NEAR(d.hausdorff_distance * diagonal(flat), h, 1e-12);
+}
+
+TEST(SurfaceDistance, EqualsTheNearestOfEveryFaceOnFansAndDegenerateFaces)
+{
+  using lapmesh::internal::Surface_distance;
+  std::vector<Triangles> meshes;
+  for(int first = 0; first < 3; ++first) meshes.push_back(fan(400, first != 1, first));
+  // Two fans at one apex, one of them turned over and below (not a manifold surface).
+  Triangles bowtie = fan(300, true, 0), lower = fan(200, true, 2);
+  const auto shift = lapmesh::internal::Index(bowtie.P.rows()) - 1;
+  lower.P.bottomRows(200) *= 0.7;
+  lower.P.bottomRows(200).col(2).array() -= 0.3;
+  bowtie.P.conservativeResize(shift + lower.P.rows(), 3);
+  bowtie.P.bottomRows(200) = lower.P.bottomRows(200);
+  for(std::size_t k = 0; k < lower.triangles.size(); ++k)
+    bowtie.triangles.push_back(lower.triangles[k] == 0 ? 0 : lower.triangles[k] + shift);
+  meshes.push_back(bowtie);
+  // A jittered sphere with faces of no area: a corner repeated, three corners on a line.
+  Triangles sphere = triangles_of_mesh(jitter(to_mesh(lapmesh::icosphere(2)), 0.1, 3));
+  const auto n = lapmesh::internal::Index(sphere.P.rows());
+  sphere.P.conservativeResize(n + 3, 3);
+  sphere.P.row(n) << 2, 0, 0;
+  sphere.P.row(n + 1) << 2.5, 0.5, 0.5;
+  sphere.P.row(n + 2) << 3, 1, 1;
+  for(lapmesh::internal::Index v : {n, n, n + 1, n, n + 1, n + 2}) sphere.triangles.push_back(v);
+  meshes.push_back(sphere);
+
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.5, 1.5), small(-1e-3, 1e-3);
+  for(std::size_t m = 0; m < meshes.size(); ++m) {
+    const Surface_distance surface(meshes[m].P, meshes[m].triangles);
+    EXPECT_EQ(surface.fan_count(), m < 4 ? 1u : 0u) << m;
+    for(int q = 0; q < 600; ++q) {
+      // Anywhere, near the apex, and near the faces' middles.
+      Eigen::Vector3d p(u(rng), u(rng), u(rng));
+      if(q % 3 == 1) p = meshes[m].P.row(0).transpose() + Eigen::Vector3d(small(rng), small(rng), small(rng));
+      if(q % 3 == 2) {
+        const std::size_t f = 3 * (std::size_t(rng()) % (meshes[m].triangles.size() / 3));
+        p = Eigen::Vector3d(small(rng), small(rng), small(rng));
+        for(int k = 0; k < 3; ++k) p += meshes[m].P.row(meshes[m].triangles[f + k]).transpose() / 3;
+      }
+      // The coordinates are about 1: distances agree to rounding, 1e-12.
+      const double exact = brute_force_squared_distance(meshes[m], p);
+      EXPECT_NEAR(std::sqrt(surface.squared_distance(p)), std::sqrt(exact), 1e-12) << m << " " << q;
+      // With a distance that is enough, a face at most that far ends the search; none, the answer.
+      const double enough = exact * (q % 2 ? 1.5 : 0.5);
+      const double answer = surface.squared_distance(p, enough);
+      if(exact <= enough) EXPECT_LE(answer, enough) << m << " " << q;
+      else EXPECT_NEAR(std::sqrt(answer), std::sqrt(exact), 1e-12) << m << " " << q;
+    }
+  }
+}
+
+TEST(SurfaceDistance, SampledDistanceEqualsCGALsApproximateHausdorffOnTheSameGrid)
+{
+  namespace PMP = CGAL::Polygon_mesh_processing;
+  using namespace lapmesh::internal;
+  // A fan and a jittered sphere, each against a moved copy; the sphere at a fine grid, so that
+  // faces are sampled inside as well as on their edges.
+  std::vector<std::pair<Triangles, double>> cases{{fan(300, true, 1), 1.0},
+                                                  {triangles_of_mesh(to_mesh(lapmesh::icosphere(2))), 0.3}};
+  for(auto& [clean, spacing_factor] : cases) {
+    Triangles moved = clean;
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(-0.02, 0.02);
+    for(Eigen::Index i = 0; i < moved.P.rows(); ++i) moved.P.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+    const Mesh_topology t = build_topology(Index(clean.P.rows()), clean.triangles);
+    const double spacing = spacing_factor * mean_edge_length(t, clean.P);
+    const Surface_distance to_clean(clean.P, clean.triangles), to_moved(moved.P, moved.triangles);
+    const Mesh a = surface_mesh_of(moved), b = surface_mesh_of(clean);
+    const auto grid = CGAL::parameters::use_grid_sampling(true).grid_spacing(spacing);
+    const double ab = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(a, b, grid);
+    const double ba = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(b, a, grid);
+    EXPECT_GT(std::min(ab, ba), 0.005);
+    EXPECT_NEAR(sampled_one_sided_distance(t, moved.P, spacing, to_clean), ab, 1e-12 * ab);
+    EXPECT_NEAR(sampled_one_sided_distance(t, clean.P, spacing, to_moved), ba, 1e-12 * ba);
+    std::vector<Point> samples;
+    PMP::sample_triangle_mesh(a, std::back_inserter(samples), grid);
+    EXPECT_EQ(grid_sample_count(t, moved.P, spacing), double(samples.size()));
+  }
+}
+
+TEST(SurfaceDistance, GridIsCoarsenedOnlyWhereItWouldExceedItsBound)
+{
+  using namespace lapmesh::internal;
+  const Triangles sphere = triangles_of_mesh(to_mesh(lapmesh::icosphere(3)));
+  const Mesh_topology t = build_topology(Index(sphere.P.rows()), sphere.triangles);
+  const double edge = mean_edge_length(t, sphere.P);
+  EXPECT_EQ(bounded_grid_spacing(t, sphere.P, edge), edge);
+  EXPECT_EQ(bounded_grid_spacing(t, sphere.P, 0.05 * edge), 0.05 * edge);
+  const double limit = std::max(grid_sample_floor, grid_samples_per_corner * double(sphere.triangles.size()));
+  const double coarse = bounded_grid_spacing(t, sphere.P, 1e-4 * edge);
+  EXPECT_LE(grid_sample_count(t, sphere.P, coarse), limit);
+  EXPECT_GT(grid_sample_count(t, sphere.P, 0.5 * coarse), limit);  // not coarser than it needs
+  double visited = 0;
+  for_each_grid_sample(t, sphere.P, 0.3 * edge, [&](const Eigen::Vector3d&) { ++visited; });
+  EXPECT_EQ(visited, grid_sample_count(t, sphere.P, 0.3 * edge));
 }
 
 TEST(Denoising, SmoothingANoisySphereLowersEveryMetric)

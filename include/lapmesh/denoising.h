@@ -3,9 +3,11 @@
 //
 // Deviation from the reference (all lengths divided by the reference's bounding-box diagonal):
 //   rms_distance        sqrt(mean_i |p_i - q_i|^2), vertex to corresponding vertex
-//   hausdorff_distance  symmetric: max of CGAL's approximate_Hausdorff_distance both ways, with
-//                       deterministic grid sampling (vertices, edges and faces) of spacing
-//                       `hausdorff_spacing` x the larger mean edge length of the two meshes
+//   hausdorff_distance  symmetric: the largest distance from a grid sample of either mesh
+//                       (vertices, edges and faces, CGAL's grid sampling) to the other mesh,
+//                       at spacing `hausdorff_spacing` x the larger mean edge length of the two
+//                       meshes, coarsened where the grid would exceed 16 samples per corner
+//                       (and 2^20 samples)
 //   normal_angle_error  mean over vertices of the angle (degrees) between the area-weighted
 //                       vertex normals (the normalised sum of the face cross products)
 //   volume_change       (V - V_ref) / |V_ref| of the enclosed volume; NaN for open meshes
@@ -22,13 +24,10 @@
 #include <lapmesh/internal/shape_restoration.h>
 #include <lapmesh/internal/smoothing_engine.h>
 #include <lapmesh/internal/stability_bound.h>
+#include <lapmesh/internal/surface_distance.h>
 #include <lapmesh/laplacian.h>
 #include <lapmesh/noise.h>
 #include <lapmesh/parameters.h>
-
-#include <CGAL/Polygon_mesh_processing/distance.h>
-#include <CGAL/Simple_cartesian.h>
-#include <CGAL/Surface_mesh.h>
 
 #include <cmath>
 #include <cstdint>
@@ -42,7 +41,8 @@
 namespace lapmesh {
 
 /// double; default 1: grid spacing of the Hausdorff sampling, in units of the reference's
-/// mean edge length (vertices are always sampled).
+/// mean edge length (vertices are always sampled). A grid that would hold more than 16 samples
+/// per corner (and more than 2^20 samples) is coarsened until it does not.
 LAPMESH_NAMED_PARAMETER(hausdorff_spacing)
 
 namespace internal {
@@ -51,9 +51,6 @@ namespace internal {
 class Deviation_meter
 {
 public:
-  using Kernel = CGAL::Simple_cartesian<double>;
-  using Sm = CGAL::Surface_mesh<Kernel::Point_3>;
-
   Deviation_meter(const Mesh_topology& t, const Positions& reference, double hausdorff_spacing = 1.0)
       : m_t(&t), m_reference(reference)
   {
@@ -71,8 +68,7 @@ public:
     m_reference_normals = vertex_normals(reference);
     m_spacing_factor = hausdorff_spacing;
     m_spacing = hausdorff_spacing * mean_edge_length(t, reference);
-    build(m_reference_mesh, reference);
-    build(m_mesh, reference);
+    m_reference_surface = Surface_distance(reference, t.triangles);
   }
 
   double diagonal() const { return m_diagonal; }
@@ -107,18 +103,13 @@ public:
       volume_and_centroid(*m_t, P, V, c);
       d.volume_change = (V - m_volume) / std::abs(m_volume);
     }
-    auto vpm = get(CGAL::vertex_point, m_mesh);
-    for(Sm::Vertex_index v : m_mesh.vertices()) {
-      const Index i = m_vertex_row.empty() ? Index(v.idx()) : m_vertex_row[v.idx()];
-      put(vpm, v, Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
-    }
-    namespace PMP = CGAL::Polygon_mesh_processing;
     // The grid follows the larger of the two meshes' mean edge lengths, so that a blown-up
     // mesh (explicit steps above the stability bound) is not sampled with millions of points.
     const double spacing = std::max(m_spacing, m_spacing_factor * mean_edge_length(*m_t, P));
-    const auto sampling = CGAL::parameters::use_grid_sampling(true).grid_spacing(spacing);
-    const double ab = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(m_mesh, m_reference_mesh, sampling);
-    const double ba = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(m_reference_mesh, m_mesh, sampling);
+    const Surface_distance surface(P, m_t->triangles);
+    const double ab = sampled_one_sided_distance(*m_t, P, bounded_grid_spacing(*m_t, P, spacing), m_reference_surface);
+    const double ba =
+        sampled_one_sided_distance(*m_t, m_reference, bounded_grid_spacing(*m_t, m_reference, spacing), surface);
     d.hausdorff_distance = std::max(ab, ba) / m_diagonal;
     return d;
   }
@@ -142,36 +133,11 @@ private:
     return N;
   }
 
-  // The faces as a Surface_mesh for CGAL's sampling; a mesh it cannot hold as it is (a
-  // non-manifold edge or vertex) gets each face on vertices of its own (m_vertex_row).
-  void build(Sm& sm, const Positions& P)
-  {
-    sm.clear();
-    m_vertex_row.clear();
-    for(Index i = 0; i < P.rows(); ++i) sm.add_vertex(Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
-    bool held = true;
-    for(Index f = 0; f < m_t->num_faces && held; ++f)
-      held = sm.add_face(Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f])),
-                         Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 1])),
-                         Sm::Vertex_index(std::uint32_t(m_t->triangles[3 * f + 2]))) != Sm::null_face();
-    if(held) return;
-    sm.clear();
-    for(Index c = 0; c < 3 * m_t->num_faces; ++c) {
-      const Index i = m_t->triangles[c];
-      sm.add_vertex(Kernel::Point_3(P(i, 0), P(i, 1), P(i, 2)));
-      m_vertex_row.push_back(i);
-    }
-    for(Index f = 0; f < m_t->num_faces; ++f)
-      sm.add_face(Sm::Vertex_index(std::uint32_t(3 * f)), Sm::Vertex_index(std::uint32_t(3 * f + 1)),
-                  Sm::Vertex_index(std::uint32_t(3 * f + 2)));
-  }
-
   const Mesh_topology* m_t;
   Positions m_reference, m_reference_normals;
   double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
   bool m_closed = false;
-  Sm m_reference_mesh, m_mesh;
-  std::vector<Index> m_vertex_row;  // the row of each vertex of the meshes; empty: the identity
+  Surface_distance m_reference_surface;  // the reference does not move: its search is built once
 };
 
 } // namespace internal

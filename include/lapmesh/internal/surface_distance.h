@@ -1,0 +1,525 @@
+// Internal: the distance from a point to a triangle mesh, and the sampled one-sided Hausdorff
+// distance between two meshes that the denoising study measures.
+//
+// A hierarchy of axis-aligned boxes prunes badly where many long thin faces meet at one vertex
+// (a fan): every face's box reaches that vertex, so a query anywhere near the fan's middle visits
+// a fixed share of its faces, and sampling the fan costs the square of its size. The faces of a
+// vertex of many faces are therefore kept apart, in a hierarchy of their directions seen from
+// that vertex: a point at distance rho from it, whose direction is a chord c away from every
+// direction a face takes, is at least rho * min(c / sqrt(2), 1) away from those faces.
+#ifndef LAPMESH_INTERNAL_SURFACE_DISTANCE_H
+#define LAPMESH_INTERNAL_SURFACE_DISTANCE_H
+
+#include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/topology.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace lapmesh {
+namespace internal {
+
+using Point3 = Eigen::Vector3d;
+
+inline double squared_distance_to_segment(const Point3& p, const Point3& a, const Point3& b)
+{
+  const Point3 ab = b - a;
+  const double length_sq = ab.squaredNorm();
+  const double t = length_sq > 0 ? std::clamp((p - a).dot(ab) / length_sq, 0.0, 1.0) : 0.0;
+  return (p - a - t * ab).squaredNorm();
+}
+
+/// The squared distance from p to the triangle abc, by the Voronoi region of p (vertex, edge or
+/// face). A triangle without area is measured as its three sides.
+inline double squared_distance_to_triangle(const Point3& p, const Point3& a, const Point3& b, const Point3& c)
+{
+  const Point3 ab = b - a, ac = c - a;
+  const auto sides = [&] {
+    return std::min({squared_distance_to_segment(p, a, b), squared_distance_to_segment(p, b, c),
+                     squared_distance_to_segment(p, c, a)});
+  };
+  if(!(ab.cross(ac).squaredNorm() > 0)) return sides();
+  const Point3 ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if(d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+  const Point3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if(d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+  const double vc = d1 * d4 - d3 * d2;
+  if(vc <= 0 && d1 >= 0 && d3 <= 0) return (ap - d1 / (d1 - d3) * ab).squaredNorm();
+  const Point3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if(d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+  const double vb = d5 * d2 - d1 * d6;
+  if(vb <= 0 && d2 >= 0 && d6 <= 0) return (ap - d2 / (d2 - d6) * ac).squaredNorm();
+  const double va = d3 * d6 - d5 * d4;
+  if(va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return (bp - (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)).squaredNorm();
+  // Inside: the barycentric weights from the sub-areas. Rounding on a nearly flat triangle can
+  // leave them outside [0, 1]; its sides are then the answer.
+  const double sum = va + vb + vc, v = vb / sum, w = vc / sum;
+  if(!(sum > 0) || !(v >= 0 && w >= 0 && v + w <= 1)) return sides();
+  return (ap - v * ab - w * ac).squaredNorm();
+}
+
+struct Box3
+{
+  Point3 lo = Point3::Constant(std::numeric_limits<double>::infinity());
+  Point3 hi = Point3::Constant(-std::numeric_limits<double>::infinity());
+
+  void extend(const Point3& p)
+  {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void extend(const Box3& b)
+  {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+  Point3 center() const { return 0.5 * (lo + hi); }
+  double squared_distance(const Point3& p) const
+  {
+    return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).squaredNorm();
+  }
+};
+
+// The position of a point of `box` along a Morton curve of 2^21 cells a side.
+inline std::uint64_t morton_code(const Point3& p, const Box3& box)
+{
+  const auto spread = [](std::uint64_t x) {  // the 21 low bits of x to every third bit
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+  };
+  std::uint64_t code = 0;
+  for(int k = 0; k < 3; ++k) {
+    const double extent = box.hi[k] - box.lo[k];
+    const double u = extent > 0 ? (p[k] - box.lo[k]) / extent : 0.0;
+    code |= spread(std::uint64_t((u > 0 ? std::min(u, 1.0) : 0.0) * 2097151.0)) << k;  // NaN: cell 0
+  }
+  return code;
+}
+
+/// A binary hierarchy over items: each node's box holds its items', a leaf holds at most four.
+/// The items are put in order along a Morton curve through their centres (one sort) and split
+/// where the codes' highest differing bit changes, as the cells of an octree; every item is read
+/// once, for its leaf. Leaves hold positions [begin, end) of that order, in which the caller keeps
+/// its items so that a leaf reads one stretch of memory.
+struct Box_hierarchy
+{
+  struct Node
+  {
+    Box3 box;
+    std::int32_t begin = 0, end = 0;  // positions [begin, end) of a leaf
+    std::int32_t right = -1;          // the second child (the first is the next node); -1: a leaf
+  };
+  std::vector<Node> nodes;
+
+  /// The items in Morton order of their centres (the item at each position).
+  std::vector<std::int32_t> order(const std::vector<Point3>& centres)
+  {
+    Box3 bounds;
+    for(const Point3& c : centres) bounds.extend(c);
+    std::vector<std::pair<std::uint64_t, std::int32_t>> keys(centres.size());
+    for(std::size_t i = 0; i < keys.size(); ++i) keys[i] = {morton_code(centres[i], bounds), std::int32_t(i)};
+    std::sort(keys.begin(), keys.end());
+    std::vector<std::int32_t> items(keys.size());
+    m_codes.resize(keys.size());
+    for(std::size_t k = 0; k < keys.size(); ++k) {
+      items[k] = keys[k].second;
+      m_codes[k] = keys[k].first;
+    }
+    return items;
+  }
+
+  /// The nodes over the items of the last order(); box_of(k): the box of the item at position k.
+  template <typename BoxOf>
+  void build(const BoxOf& box_of)
+  {
+    nodes.clear();
+    nodes.reserve(2 * m_codes.size());  // leaves of one to four items: fewer than 2n nodes
+    if(!m_codes.empty()) build_node(box_of, 0, std::int32_t(m_codes.size()));
+    m_codes = {};
+  }
+
+private:
+  template <typename BoxOf>
+  std::int32_t build_node(const BoxOf& box_of, std::int32_t begin, std::int32_t end)
+  {
+    const std::int32_t index = std::int32_t(nodes.size());
+    nodes.emplace_back();
+    if(end - begin <= 4) {
+      Box3 box;
+      for(std::int32_t k = begin; k < end; ++k) box.extend(box_of(std::size_t(k)));
+      nodes[index].box = box;
+      nodes[index].begin = begin;
+      nodes[index].end = end;
+      return index;
+    }
+    // Items of one code (one cell of the finest grid) are split by count.
+    std::int32_t middle = begin + (end - begin) / 2;
+    const std::uint64_t differing = m_codes[std::size_t(begin)] ^ m_codes[std::size_t(end) - 1];
+    if(differing != 0) {
+      std::uint64_t bit = std::uint64_t(1) << 63;
+      while(!(differing & bit)) bit >>= 1;
+      middle = std::int32_t(std::partition_point(m_codes.begin() + begin, m_codes.begin() + end,
+                                                 [&](std::uint64_t c) { return !(c & bit); }) -
+                            m_codes.begin());
+    }
+    build_node(box_of, begin, middle);
+    const std::int32_t right = build_node(box_of, middle, end);
+    Box3 box = nodes[std::size_t(index) + 1].box;
+    box.extend(nodes[std::size_t(right)].box);
+    nodes[index].box = box;
+    nodes[index].right = right;
+    return index;
+  }
+
+  std::vector<std::uint64_t> m_codes;  // of the items in order, between order() and build()
+};
+
+/// Squared distances from points to the faces of a triangle mesh (any: with borders, non-manifold,
+/// with faces without area). Faces around a vertex of at least `fan_faces` faces go into that
+/// vertex's fan (the vertex of most faces among the three), searched by direction.
+class Surface_distance
+{
+public:
+  static constexpr Index fan_faces = 32;
+
+  Surface_distance() = default;
+  Surface_distance(const Positions& P, const std::vector<Index>& triangles)
+  {
+    using Corners = std::array<Index, 3>;
+    const std::size_t num_faces = triangles.size() / 3;
+    std::vector<Index> faces_of(std::size_t(P.rows()), 0);
+    for(Index v : triangles) ++faces_of[std::size_t(v)];
+    const auto point = [&](Index v) -> Point3 { return P.row(v).transpose(); };
+    const auto centre = [&](const Corners& c) {
+      Box3 b;
+      for(Index v : c) b.extend(point(v));
+      return b.center();
+    };
+
+    // Faces in no fan, and each fan's faces with its apex first.
+    std::vector<Corners> loose;
+    loose.reserve(num_faces);
+    std::vector<std::vector<Corners>> fan_faces_of;
+    std::vector<std::int32_t> fan_of_vertex(std::size_t(P.rows()), -1);
+    for(std::size_t f = 0; f < num_faces; ++f) {
+      const Index* c = &triangles[3 * f];
+      int apex = 0;
+      for(int k = 1; k < 3; ++k)
+        if(faces_of[std::size_t(c[k])] > faces_of[std::size_t(c[apex])]) apex = k;
+      const Corners corners{c[apex], c[(apex + 1) % 3], c[(apex + 2) % 3]};
+      if(faces_of[std::size_t(c[apex])] < fan_faces) {
+        loose.push_back(corners);
+        continue;
+      }
+      std::int32_t& fan = fan_of_vertex[std::size_t(c[apex])];
+      if(fan < 0) {
+        fan = std::int32_t(fan_faces_of.size());
+        fan_faces_of.emplace_back();
+      }
+      fan_faces_of[std::size_t(fan)].push_back(corners);
+    }
+
+    m_fans.resize(fan_faces_of.size());
+    std::vector<Box3> fan_boxes(m_fans.size());
+    for(std::size_t g = 0; g < m_fans.size(); ++g) {
+      Fan& fan = m_fans[g];
+      const std::vector<Corners>& faces = fan_faces_of[g];
+      fan.apex = point(faces.front()[0]);
+      std::vector<Point3> centres(faces.size());
+      for(std::size_t i = 0; i < faces.size(); ++i) centres[i] = centre(faces[i]);
+      const std::vector<std::int32_t> order = fan.hierarchy.order(centres);
+      fan.triangles.resize(faces.size());
+      fan.directions.resize(faces.size());
+      for(std::size_t k = 0; k < order.size(); ++k) {
+        const Corners& c = faces[std::size_t(order[k])];
+        fan.triangles[k] = {point(c[0]), point(c[1]), point(c[2])};
+        fan.directions[k] = direction_box(fan.triangles[k]);
+      }
+      fan.hierarchy.build([&](std::size_t k) { return box_of(fan.triangles[k]); });
+      // Each fan node also bounds the directions of its faces.
+      fan.node_directions.resize(fan.hierarchy.nodes.size());
+      for(std::size_t n = fan.hierarchy.nodes.size(); n-- > 0;) {
+        const auto& node = fan.hierarchy.nodes[n];
+        Box3 d;
+        if(node.right < 0) {
+          for(std::int32_t k = node.begin; k < node.end; ++k) d.extend(fan.directions[std::size_t(k)]);
+        } else {
+          d = fan.node_directions[n + 1];
+          d.extend(fan.node_directions[std::size_t(node.right)]);
+        }
+        fan.node_directions[n] = d;
+      }
+      fan_boxes[g] = fan.hierarchy.nodes.front().box;
+    }
+
+    // The loose faces and the fans as items of one hierarchy, in its order.
+    std::vector<Point3> centres(loose.size() + m_fans.size());
+    for(std::size_t i = 0; i < loose.size(); ++i) centres[i] = centre(loose[i]);
+    for(std::size_t g = 0; g < m_fans.size(); ++g) centres[loose.size() + g] = fan_boxes[g].center();
+    const std::vector<std::int32_t> order = m_hierarchy.order(centres);
+    m_items.resize(order.size());
+    m_triangles.reserve(loose.size());
+    for(std::size_t k = 0; k < order.size(); ++k) {
+      const std::size_t item = std::size_t(order[k]);
+      if(item < loose.size()) {
+        m_items[k] = std::int32_t(m_triangles.size());
+        const Corners& c = loose[item];
+        m_triangles.push_back({point(c[0]), point(c[1]), point(c[2])});
+      } else {
+        m_items[k] = -1 - std::int32_t(item - loose.size());
+      }
+    }
+    m_hierarchy.build([&](std::size_t k) {
+      const std::int32_t i = m_items[k];
+      return i >= 0 ? box_of(m_triangles[std::size_t(i)]) : fan_boxes[std::size_t(-1 - i)];
+    });
+  }
+
+  /// The squared distance from p to the nearest face, or any value of at most `enough` once one
+  /// face is found that near (a caller after a maximum of distances needs no more); infinity
+  /// without faces.
+  double squared_distance(const Point3& p, double enough = -1) const
+  {
+    double best = std::numeric_limits<double>::infinity();
+    search(m_hierarchy, p, best, enough, [&](std::int32_t item, double& best_so_far) {
+      const std::int32_t i = m_items[std::size_t(item)];
+      if(i >= 0) {
+        const auto& t = m_triangles[std::size_t(i)];
+        best_so_far = std::min(best_so_far, squared_distance_to_triangle(p, t[0], t[1], t[2]));
+      } else {
+        search_fan(m_fans[std::size_t(-1 - i)], p, best_so_far, enough);
+      }
+    });
+    return best;
+  }
+
+  std::size_t fan_count() const { return m_fans.size(); }
+
+private:
+  struct Fan
+  {
+    Point3 apex;
+    std::vector<std::array<Point3, 3>> triangles;  // apex first
+    std::vector<Box3> directions;                   // of each face: its unit directions from the apex
+    Box_hierarchy hierarchy;                        // over the faces, kept in its order
+    std::vector<Box3> node_directions;              // of each node of the hierarchy
+  };
+
+  static Box3 box_of(const std::array<Point3, 3>& t)
+  {
+    Box3 b;
+    for(const Point3& p : t) b.extend(p);
+    return b;
+  }
+
+  // A box holding the unit directions from the apex t[0] to the points of the face: the arc of the
+  // unit circle between the directions of the two other corners. The arc lies within its sagitta
+  // of the chord. The margin covers the rounding of the bound.
+  static Box3 direction_box(const std::array<Point3, 3>& t)
+  {
+    const Point3 a = t[1] - t[0], b = t[2] - t[0];
+    const double la = a.norm(), lb = b.norm();
+    Box3 d;
+    if(!(la > 0) && !(lb > 0)) {  // the face is its apex: every direction
+      d.extend(Point3::Constant(-1.0));
+      d.extend(Point3::Constant(1.0));
+      return d;
+    }
+    const Point3 ua = la > 0 ? Point3(a / la) : Point3(b / lb), ub = lb > 0 ? Point3(b / lb) : ua;
+    d.extend(ua);
+    d.extend(ub);
+    const double sagitta = 1 - std::sqrt(std::max(0.0, 0.5 * (1 + ua.dot(ub))));
+    const double margin = sagitta + 1e-9;
+    d.lo.array() -= margin;
+    d.hi.array() += margin;
+    return d;
+  }
+
+  void search_fan(const Fan& fan, const Point3& p, double& best, double enough) const
+  {
+    const Point3 d = p - fan.apex;
+    const double rho = d.norm();
+    const Point3 direction = rho > 0 ? Point3(d / rho) : Point3::Zero();
+    const auto direction_bound = [&](const Box3& directions) {
+      if(!(rho > 0)) return 0.0;
+      const double chord_sq = directions.squared_distance(direction);
+      return rho * rho * std::min(0.5 * chord_sq, 1.0);
+    };
+    search(fan.hierarchy, p, best, enough,
+           [&](std::int32_t item, double& best_so_far) {
+             const auto& t = fan.triangles[std::size_t(item)];
+             if(direction_bound(fan.directions[std::size_t(item)]) < best_so_far)
+               best_so_far = std::min(best_so_far, squared_distance_to_triangle(p, t[0], t[1], t[2]));
+           },
+           [&](std::size_t node) { return direction_bound(fan.node_directions[node]); });
+  }
+
+  // Depth first, the nearer child first; a node is skipped when its bound is no less than the
+  // best distance so far, and the search stops once that is at most `enough`.
+  template <typename VisitItem, typename ExtraBound>
+  static void search(const Box_hierarchy& h, const Point3& p, double& best, double enough, const VisitItem& visit,
+                     const ExtraBound& extra_bound)
+  {
+    if(h.nodes.empty()) return;
+    const auto bound = [&](std::size_t n) { return std::max(h.nodes[n].box.squared_distance(p), extra_bound(n)); };
+    struct Entry
+    {
+      std::size_t node;
+      double bound;
+    };
+    Entry stack[128];
+    int top = 0;
+    stack[top++] = {0, bound(0)};
+    while(top > 0) {
+      const Entry e = stack[--top];
+      if(e.bound >= best) continue;
+      const auto& node = h.nodes[e.node];
+      if(node.right < 0) {
+        for(std::int32_t k = node.begin; k < node.end; ++k) {
+          visit(k, best);
+          if(best <= enough) return;
+        }
+        continue;
+      }
+      const std::size_t left = e.node + 1, right = std::size_t(node.right);
+      const double bl = bound(left), br = bound(right);
+      // The depth is at most 63 splits by bit and 31 by count: the stack holds one entry per level and one more.
+      if(bl <= br) {
+        if(br < best) stack[top++] = {right, br};
+        if(bl < best) stack[top++] = {left, bl};
+      } else {
+        if(bl < best) stack[top++] = {left, bl};
+        if(br < best) stack[top++] = {right, br};
+      }
+    }
+  }
+
+  template <typename VisitItem>
+  static void search(const Box_hierarchy& h, const Point3& p, double& best, double enough, const VisitItem& visit)
+  {
+    search(h, p, best, enough, visit, [](std::size_t) { return 0.0; });
+  }
+
+  std::vector<std::array<Point3, 3>> m_triangles;  // the faces in no fan
+  std::vector<std::int32_t> m_items;  // in the hierarchy's order: >= 0 a face of m_triangles, < 0 fan -1 - item
+  std::vector<Fan> m_fans;
+  Box_hierarchy m_hierarchy;
+};
+
+/// Calls visit(point) for the grid samples of the faces of (t, P) at `spacing`: every vertex in a
+/// face, the points that split each edge into ceil(length / spacing) equal parts, and the inner
+/// points of each face's barycentric grid, of ceil(longest of two sides / spacing) steps from
+/// its third corner. This is the sampling of CGAL's `sample_triangle_mesh()` with grid sampling on
+/// a `Surface_mesh` built face by face (whose faces begin at their third corner), so that the two
+/// can be compared.
+template <typename Visit>
+void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spacing, const Visit& visit)
+{
+  const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
+  for(Index v = 0; v < t.num_vertices; ++v)
+    if(t.corner_begin[v + 1] > t.corner_begin[v]) visit(point(v));
+  for(Index i = 0; i < t.num_vertices; ++i)
+    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k) {
+      const Index j = t.inner[k];
+      if(j <= i) continue;
+      const Point3 a = point(i);
+      const double parts = std::ceil((point(j) - a).norm() / spacing);
+      if(!(parts > 1)) continue;
+      const Point3 step = (point(j) - a) * (1 / parts);
+      for(double s = 1; s < parts; ++s) visit(Point3(a + s * step));
+    }
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const Index* c = &t.triangles[3 * std::size_t(f)];
+    const Point3 p0 = point(c[2]), p1 = point(c[0]), p2 = point(c[1]);
+    const double n = std::max(std::ceil((p1 - p0).norm() / spacing), std::ceil((p2 - p0).norm() / spacing));
+    for(double i = 1; i < n; ++i)
+      for(double j = 1; j < n - i; ++j) {
+        const double c0 = 1 - (i + j) / n, c1 = i / n, c2 = j / n;
+        visit(Point3(c0 * p0 + c1 * p1 + c2 * p2));
+      }
+  }
+}
+
+/// How many points for_each_grid_sample() visits, without visiting them.
+inline double grid_sample_count(const Mesh_topology& t, const Positions& P, double spacing)
+{
+  double count = 0;
+  for(Index v = 0; v < t.num_vertices; ++v) count += t.corner_begin[v + 1] > t.corner_begin[v] ? 1 : 0;
+  for(Index i = 0; i < t.num_vertices; ++i)
+    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k)
+      if(t.inner[k] > i) count += std::max(0.0, std::ceil((P.row(t.inner[k]) - P.row(i)).norm() / spacing) - 1);
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const Index* c = &t.triangles[3 * std::size_t(f)];
+    const double n = std::max(std::ceil((P.row(c[0]) - P.row(c[2])).norm() / spacing),
+                              std::ceil((P.row(c[1]) - P.row(c[2])).norm() / spacing));
+    if(n > 2) count += (n - 1) * (n - 2) / 2;
+  }
+  return count;
+}
+
+/// The fewest samples a mesh may always take, and how many per corner beyond them.
+constexpr double grid_sample_floor = double(1 << 20);
+constexpr double grid_samples_per_corner = 16;
+
+/// `spacing`, or a coarser one if the grid would hold more than grid_sample_floor or
+/// grid_samples_per_corner samples per corner: the work of a sampled distance stays bounded on a
+/// mesh of a few faces far larger than the rest, or for a spacing asked far below the edges.
+inline double bounded_grid_spacing(const Mesh_topology& t, const Positions& P, double spacing)
+{
+  const double limit = std::max(grid_sample_floor, grid_samples_per_corner * 3.0 * double(t.num_faces));
+  for(int attempt = 0; attempt < 64; ++attempt) {
+    const double count = grid_sample_count(t, P, spacing);
+    if(count <= limit) return spacing;
+    // The face grids grow as the square of 1 / spacing: the square root of the excess and a
+    // little more brings them under the limit in a step or two.
+    spacing *= 1.05 * std::sqrt(count / limit);
+  }
+  return spacing;
+}
+
+/// The largest distance from a grid sample of (t, P) to the surface, at `spacing`.
+inline double sampled_one_sided_distance(const Mesh_topology& t, const Positions& P, double spacing,
+                                         const Surface_distance& surface)
+{
+  // Queries that follow one another in space share their path through the hierarchies and find
+  // it in cache: the samples are taken in chunks, each ordered along a Morton curve. The faces of
+  // a mesh whose vertices are numbered at random would otherwise send every query elsewhere.
+  constexpr std::size_t chunk_size = std::size_t(1) << 20;
+  Box3 box;
+  for(Index v = 0; v < t.num_vertices; ++v) box.extend(Point3(P.row(v).transpose()));
+  std::vector<std::pair<std::uint64_t, Point3>> chunk;
+  chunk.reserve(chunk_size);
+  double largest_sq = 0;
+  const auto query_chunk = [&] {
+    std::sort(chunk.begin(), chunk.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for(const auto& sample : chunk) largest_sq = std::max(largest_sq, surface.squared_distance(sample.second, largest_sq));
+    chunk.clear();
+  };
+  for_each_grid_sample(t, P, spacing, [&](const Point3& p) {
+    chunk.emplace_back(morton_code(p, box), p);
+    if(chunk.size() == chunk_size) query_chunk();
+  });
+  query_chunk();
+  return std::sqrt(largest_sq);
+}
+
+} // namespace internal
+} // namespace lapmesh
+
+#endif // LAPMESH_INTERNAL_SURFACE_DISTANCE_H
