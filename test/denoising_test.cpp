@@ -73,11 +73,11 @@ struct Triangles
   std::vector<lapmesh::internal::Index> triangles;
 };
 
-Triangles fan(int n, bool closed, int first, double height = 0.1)
+Triangles fan(int n, bool closed, int first)
 {
   Triangles t;
   t.P.resize(n + 1, 3);
-  t.P.row(0) << 0, 0, height;
+  t.P.row(0) << 0, 0, 0.1;
   for(int i = 0; i < n; ++i) {
     const double a = 2 * M_PI * i / n;
     t.P.row(i + 1) << std::cos(a), std::sin(a), 0.02 * std::sin(7 * a);

@@ -428,6 +428,14 @@ private:
 /// its third corner. This is the sampling of CGAL's `sample_triangle_mesh()` with grid sampling on
 /// a `Surface_mesh` built face by face (whose faces begin at their third corner), so that the two
 /// can be compared.
+// The grid's steps: equal parts of the edge ab, and the steps of the face grid from p0 (its third
+// corner) along its two sides.
+inline double edge_parts(const Point3& a, const Point3& b, double spacing) { return std::ceil((b - a).norm() / spacing); }
+inline double face_grid_steps(const Point3& p0, const Point3& p1, const Point3& p2, double spacing)
+{
+  return std::max(edge_parts(p0, p1, spacing), edge_parts(p0, p2, spacing));
+}
+
 template <typename Visit>
 void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spacing, const Visit& visit)
 {
@@ -439,7 +447,7 @@ void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spa
       const Index j = t.inner[k];
       if(j <= i) continue;
       const Point3 a = point(i);
-      const double parts = std::ceil((point(j) - a).norm() / spacing);
+      const double parts = edge_parts(a, point(j), spacing);
       if(!(parts > 1)) continue;
       const Point3 step = (point(j) - a) * (1 / parts);
       for(double s = 1; s < parts; ++s) visit(Point3(a + s * step));
@@ -447,7 +455,7 @@ void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spa
   for(Index f = 0; f < t.num_faces; ++f) {
     const Index* c = &t.triangles[3 * std::size_t(f)];
     const Point3 p0 = point(c[2]), p1 = point(c[0]), p2 = point(c[1]);
-    const double n = std::max(std::ceil((p1 - p0).norm() / spacing), std::ceil((p2 - p0).norm() / spacing));
+    const double n = face_grid_steps(p0, p1, p2, spacing);
     for(double i = 1; i < n; ++i)
       for(double j = 1; j < n - i; ++j) {
         const double c0 = 1 - (i + j) / n, c1 = i / n, c2 = j / n;
@@ -459,15 +467,15 @@ void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spa
 /// How many points for_each_grid_sample() visits, without visiting them.
 inline double grid_sample_count(const Mesh_topology& t, const Positions& P, double spacing)
 {
+  const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
   double count = 0;
   for(Index v = 0; v < t.num_vertices; ++v) count += t.corner_begin[v + 1] > t.corner_begin[v] ? 1 : 0;
   for(Index i = 0; i < t.num_vertices; ++i)
     for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k)
-      if(t.inner[k] > i) count += std::max(0.0, std::ceil((P.row(t.inner[k]) - P.row(i)).norm() / spacing) - 1);
+      if(t.inner[k] > i) count += std::max(0.0, edge_parts(point(i), point(t.inner[k]), spacing) - 1);
   for(Index f = 0; f < t.num_faces; ++f) {
     const Index* c = &t.triangles[3 * std::size_t(f)];
-    const double n = std::max(std::ceil((P.row(c[0]) - P.row(c[2])).norm() / spacing),
-                              std::ceil((P.row(c[1]) - P.row(c[2])).norm() / spacing));
+    const double n = face_grid_steps(point(c[2]), point(c[0]), point(c[1]), spacing);
     if(n > 2) count += (n - 1) * (n - 2) / 2;
   }
   return count;
