@@ -362,6 +362,9 @@ void run(const Study_options& o)
       std::cout << "  " << line.stopped_runs << " of " << line.runs << " runs stopped early (failed or diverged; the reason "
                 << "is in the CSV's error column), e.g. " << line.first_stop_reason << '\n';
   }
+  if(const double coarsening = study.largest_hausdorff_coarsening(); coarsening > 1)
+    std::cout << "Hausdorff grid coarsened, up to " << coarsening << " times the spacing asked, where it would have held more "
+              << "than 16 samples per corner\n";
 }
 
 } // namespace

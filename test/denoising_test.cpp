@@ -14,6 +14,9 @@
 #include <CGAL/Surface_mesh.h>
 
 #include <Eigen/Dense>
+#ifdef CGAL_LINKED_WITH_TBB
+#include <tbb/task_arena.h>
+#endif
 
 #include <cstdlib>
 #include <filesystem>
@@ -169,6 +172,7 @@ TEST(Denoising, DeviationMatchesDirectComputations)
   const double brute = std::max(brute_force_one_sided(clean, moved, 40), brute_force_one_sided(moved, clean, 40));
   EXPECT_GT(brute, 0.05);  // a real distance, well above the tolerance
   EXPECT_NEAR(d.hausdorff_distance * diag, brute, 0.015);
+  EXPECT_EQ(d.hausdorff_coarsening, 1.0);  // 80 faces at 0.02 edge lengths: within the bound
 
   // Volume change against CGAL's volume.
   const double V0 = CGAL::Polygon_mesh_processing::volume(clean), V1 = CGAL::Polygon_mesh_processing::volume(moved);
@@ -277,6 +281,39 @@ TEST(SurfaceDistance, SampledDistanceEqualsCGALsApproximateHausdorffOnTheSameGri
   }
 }
 
+TEST(SurfaceDistance, ParallelSearchGivesTheSameDistances)
+{
+  using namespace lapmesh::internal;
+  // About 60 000 samples a direction: some 60 parts of 1024, which the threads start from
+  // different largest distances so far.
+  const Mesh clean_mesh = to_mesh(lapmesh::icosphere(3));
+  const Mesh moved_mesh = jitter(clean_mesh, 0.02, 9);
+  const Triangles clean = triangles_of_mesh(clean_mesh), moved = triangles_of_mesh(moved_mesh);
+  const Mesh_topology t = build_topology(Index(clean.P.rows()), clean.triangles);
+  const double spacing = 0.1 * mean_edge_length(t, clean.P);
+  ASSERT_GT(grid_sample_count(t, clean.P, spacing), 50000.0);
+  const Surface_distance to_clean(clean.P, clean.triangles), to_moved(moved.P, moved.triangles);
+  const auto check = [&] {
+    EXPECT_EQ(sampled_one_sided_distance(t, moved.P, spacing, to_clean, true),
+              sampled_one_sided_distance(t, moved.P, spacing, to_clean, false));
+    EXPECT_EQ(sampled_one_sided_distance(t, clean.P, spacing, to_moved, true),
+              sampled_one_sided_distance(t, clean.P, spacing, to_moved, false));
+    const auto np = LP::hausdorff_spacing(0.1);
+    const auto serial = lapmesh::mesh_deviation(clean_mesh, moved_mesh, LP::default_values(), np);
+    const auto parallel = lapmesh::mesh_deviation<CGAL::Parallel_tag>(clean_mesh, moved_mesh, LP::default_values(), np);
+    EXPECT_GT(serial.hausdorff_distance, 0.0);
+    EXPECT_EQ(parallel.hausdorff_distance, serial.hausdorff_distance);
+    EXPECT_EQ(parallel.rms_distance, serial.rms_distance);
+    EXPECT_EQ(parallel.normal_angle_error, serial.normal_angle_error);
+  };
+#ifdef CGAL_LINKED_WITH_TBB
+  tbb::task_arena arena(4);
+  arena.execute(check);
+#else
+  check();
+#endif
+}
+
 TEST(SurfaceDistance, GridIsCoarsenedOnlyWhereItWouldExceedItsBound)
 {
   using namespace lapmesh::internal;
@@ -292,6 +329,13 @@ TEST(SurfaceDistance, GridIsCoarsenedOnlyWhereItWouldExceedItsBound)
   double visited = 0;
   for_each_grid_sample(t, sphere.P, 0.3 * edge, [&](const Eigen::Vector3d&) { ++visited; });
   EXPECT_EQ(visited, grid_sample_count(t, sphere.P, 0.3 * edge));
+
+  // mesh_deviation() reports the coarsening: here both directions sample the same mesh.
+  const Mesh m = to_mesh(lapmesh::icosphere(3));
+  EXPECT_EQ(lapmesh::mesh_deviation(m, m).hausdorff_coarsening, 1.0);
+  const auto d = lapmesh::mesh_deviation(m, m, LP::default_values(), LP::hausdorff_spacing(1e-4));
+  EXPECT_NEAR(d.hausdorff_coarsening, coarse / (1e-4 * edge), 1e-9 * d.hausdorff_coarsening);
+  EXPECT_GT(d.hausdorff_coarsening, 100.0);
 }
 
 TEST(Denoising, SmoothingANoisySphereLowersEveryMetric)
@@ -477,6 +521,31 @@ TEST(DenoisingCli, WritesOneRowPerIterationAndReportsTheBest)
   const std::string plot = read_file(svg);
   EXPECT_EQ(plot.rfind("<svg", 0), 0u);
   EXPECT_NE(plot.find("implicit cotangent"), std::string::npos);
+  EXPECT_EQ(r.out.find("coarsened"), std::string::npos) << r.out;
+}
+
+TEST(DenoisingCli, SaysWhenTheHausdorffGridWasCoarsened)
+{
+  const std::string in = lapmesh_test::scratch_dir() + "/study_in3.off";
+  {
+    const auto [P, tris] = lapmesh::io::mesh_arrays(to_mesh(lapmesh::icosphere(1)));
+    lapmesh::io::write_mesh(in, P, tris);
+  }
+  const std::string out = lapmesh_test::scratch_dir() + "/study_grid.csv";
+  const std::string args = " --levels 0.05 --schemes implicit --laplacians cotangent --lambdas 0.1 --iterations 1";
+  const Cli_result fine = run_study_cli(in + " -o " + out + args + " --hausdorff-spacing 0.05");
+  ASSERT_EQ(fine.status, 0) << fine.err;
+  EXPECT_EQ(fine.out.find("coarsened"), std::string::npos) << fine.out;
+  // 1e-5 edge lengths would put about 5e9 samples on each of the 80 faces; 2^20 samples in all
+  // is a spacing of about 1/160 edge length, some 600 times coarser.
+  const Cli_result coarse = run_study_cli(in + " -o " + out + args + " --hausdorff-spacing 1e-5");
+  ASSERT_EQ(coarse.status, 0) << coarse.err;
+  const std::string note = "Hausdorff grid coarsened, up to ";
+  const std::size_t at = coarse.out.find(note);
+  ASSERT_NE(at, std::string::npos) << coarse.out;
+  const double factor = std::stod(coarse.out.substr(at + note.size()));
+  EXPECT_GT(factor, 300.0) << coarse.out;
+  EXPECT_LT(factor, 1500.0) << coarse.out;
 }
 
 // ---- why runs fail, and what the command line says about it ---------------------------

@@ -51,8 +51,10 @@ namespace internal {
 class Deviation_meter
 {
 public:
-  Deviation_meter(const Mesh_topology& t, const Positions& reference, double hausdorff_spacing = 1.0)
-      : m_t(&t), m_reference(reference)
+  /// `parallel`: the Hausdorff samples are searched by several threads (same results).
+  Deviation_meter(const Mesh_topology& t, const Positions& reference, double hausdorff_spacing = 1.0,
+                  bool parallel = false)
+      : m_t(&t), m_reference(reference), m_parallel(parallel)
   {
     if(reference.rows() != t.num_vertices) throw std::invalid_argument("the reference has the wrong number of vertices");
     if(!(hausdorff_spacing > 0) || !std::isfinite(hausdorff_spacing))
@@ -107,10 +109,12 @@ public:
     // mesh (explicit steps above the stability bound) is not sampled with millions of points.
     const double spacing = std::max(m_spacing, m_spacing_factor * mean_edge_length(*m_t, P));
     const Surface_distance surface(P, m_t->triangles);
-    const double ab = sampled_one_sided_distance(*m_t, P, bounded_grid_spacing(*m_t, P, spacing), m_reference_surface);
-    const double ba =
-        sampled_one_sided_distance(*m_t, m_reference, bounded_grid_spacing(*m_t, m_reference, spacing), surface);
+    const double spacing_ab = bounded_grid_spacing(*m_t, P, spacing);
+    const double spacing_ba = bounded_grid_spacing(*m_t, m_reference, spacing);
+    const double ab = sampled_one_sided_distance(*m_t, P, spacing_ab, m_reference_surface, m_parallel);
+    const double ba = sampled_one_sided_distance(*m_t, m_reference, spacing_ba, surface, m_parallel);
     d.hausdorff_distance = std::max(ab, ba) / m_diagonal;
+    d.hausdorff_coarsening = std::max(spacing_ab, spacing_ba) / spacing;
     return d;
   }
 
@@ -136,7 +140,7 @@ private:
   const Mesh_topology* m_t;
   Positions m_reference, m_reference_normals;
   double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
-  bool m_closed = false;
+  bool m_closed = false, m_parallel = false;
   Surface_distance m_reference_surface;  // the reference does not move: its search is built once
 };
 
@@ -153,8 +157,11 @@ private:
 /// @param np_reference named parameters of `reference`: `vertex_point_map`, `vertex_index_map`
 /// @param np named parameters of `tm`: `vertex_point_map`, `vertex_index_map`, and
 ///   `lapmesh::parameters::hausdorff_spacing` (default 1 mean edge length)
+/// @tparam ConcurrencyTag `CGAL::Parallel_tag` searches the Hausdorff samples in parallel (TBB);
+///   the result is the same.
 /// @throws std::invalid_argument when the connectivities differ; Mesh_error for invalid meshes.
-template <typename TriangleMesh, typename NamedParameters1 = CGAL::parameters::Default_named_parameters,
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters1 = CGAL::parameters::Default_named_parameters,
           typename NamedParameters2 = CGAL::parameters::Default_named_parameters>
 Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh& tm,
                               const NamedParameters1& np_reference = CGAL::parameters::default_values(),
@@ -166,7 +173,7 @@ Mesh_deviation mesh_deviation(const TriangleMesh& reference, const TriangleMesh&
     throw std::invalid_argument("the mesh and the reference do not have the same connectivity");
   const double spacing =
     CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, internal_np::hausdorff_spacing), 1.0);
-  internal::Deviation_meter meter(ref.topology, ref.positions, spacing);
+  internal::Deviation_meter meter(ref.topology, ref.positions, spacing, internal::is_parallel<ConcurrencyTag>());
   return meter.measure(cur.positions);
 }
 
@@ -175,7 +182,7 @@ namespace internal {
 struct Stop_run {};
 
 inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positions& clean,
-                                           const Denoising_study_settings& s)
+                                           const Denoising_study_settings& s, bool parallel = false)
 {
   if(s.iterations <= 0) throw std::invalid_argument("the number of iterations must be positive (got " + std::to_string(s.iterations) + ")");
   for(double l : s.noise_levels)
@@ -188,7 +195,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
     throw Parameter_error("restore_volume", "volume restoration needs a closed mesh");
   checked_mollification(s.mollification, "mollification");
 
-  Deviation_meter meter(t, clean, s.hausdorff_spacing);
+  Deviation_meter meter(t, clean, s.hausdorff_spacing, parallel);
   Denoising_study study;
   const std::size_t total_runs = s.noise_levels.size() * s.schemes.size() * s.laplacians.size() * s.time_steps.size();
   study.records.reserve(total_runs * std::size_t(s.iterations + 1));
@@ -314,14 +321,17 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
 /// Runs whose RMS distance exceeds one bounding-box diagonal are stopped and marked
 /// `diverged`; runs stopped by an error (a collapsed face, a failed factorisation) are marked
 /// `failed`; their remaining records hold NaN. Named parameters: `vertex_point_map`,
-/// `vertex_index_map`. `tm` is not modified.
-template <typename TriangleMesh, typename NamedParameters = CGAL::parameters::Default_named_parameters>
+/// `vertex_index_map`. `tm` is not modified. With `CGAL::Parallel_tag` the Hausdorff samples of
+/// each measurement are searched in parallel (TBB); the records are the same.
+template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
+          typename NamedParameters = CGAL::parameters::Default_named_parameters>
 Denoising_study run_denoising_study(const TriangleMesh& tm, const Denoising_study_settings& settings,
                                     const NamedParameters& np = CGAL::parameters::default_values())
 {
   const auto mesh = internal::extract_mesh(tm, np);
-  return mesh.naming_input_vertices(
-    [&] { return internal::run_denoising_study(mesh.topology, mesh.positions, settings); });
+  return mesh.naming_input_vertices([&] {
+    return internal::run_denoising_study(mesh.topology, mesh.positions, settings, internal::is_parallel<ConcurrencyTag>());
+  });
 }
 
 } // namespace lapmesh

@@ -243,6 +243,10 @@ struct Mesh_deviation
   double hausdorff_distance = 0;  ///< symmetric approximate Hausdorff distance / diagonal
   double normal_angle_error = 0;  ///< mean angle between area-weighted vertex normals, degrees
   double volume_change = std::numeric_limits<double>::quiet_NaN();  ///< (V - V_ref)/|V_ref|; NaN if open
+  /// How many times coarser than asked the Hausdorff grid was sampled, at most over the two
+  /// directions: 1 when as asked, above 1 where the grid would have held more than 16 samples
+  /// per corner (and more than 2^20 samples).
+  double hausdorff_coarsening = 1;
 };
 
 
@@ -331,6 +335,15 @@ struct Denoising_study
          std::isfinite(r.deviation.rms_distance) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
         out = r;
     return out;
+  }
+
+  /// The largest Mesh_deviation::hausdorff_coarsening of the records (1: every grid as asked).
+  double largest_hausdorff_coarsening() const
+  {
+    double largest = 1;
+    for(const auto& r : records)
+      if(r.deviation.hausdorff_coarsening > largest) largest = r.deviation.hausdorff_coarsening;
+    return largest;
   }
 };
 

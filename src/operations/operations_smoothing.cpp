@@ -148,7 +148,7 @@ void check(const lapmesh::Denoising_study_settings& s)
 lapmesh::Denoising_study denoise_study(const Mesh& mesh, const lapmesh::Denoising_study_settings& settings)
 {
   check(settings);
-  return with_numbering(mesh, [&](const auto& np) { return lapmesh::run_denoising_study(mesh, settings, np); });
+  return with_numbering(mesh, [&](const auto& np) { return lapmesh::run_denoising_study<CGAL::Parallel_if_available_tag>(mesh, settings, np); });
 }
 
 std::vector<Study_summary_line> summarize(const lapmesh::Denoising_study& study,

@@ -11,6 +11,7 @@
 #define LAPMESH_INTERNAL_SURFACE_DISTANCE_H
 
 #include <lapmesh/internal/geometry.h>
+#include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/topology.h>
 
 #include <Eigen/Core>
@@ -18,6 +19,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -501,9 +503,10 @@ inline double bounded_grid_spacing(const Mesh_topology& t, const Positions& P, d
   return spacing;
 }
 
-/// The largest distance from a grid sample of (t, P) to the surface, at `spacing`.
+/// The largest distance from a grid sample of (t, P) to the surface, at `spacing`; the samples
+/// are searched by several threads when `parallel` (and TBB is available), with the same result.
 inline double sampled_one_sided_distance(const Mesh_topology& t, const Positions& P, double spacing,
-                                         const Surface_distance& surface)
+                                         const Surface_distance& surface, bool parallel = false)
 {
   // Queries that follow one another in space share their path through the hierarchies and find
   // it in cache: the samples are taken in chunks, each ordered along a Morton curve. The faces of
@@ -513,10 +516,19 @@ inline double sampled_one_sided_distance(const Mesh_topology& t, const Positions
   for(Index v = 0; v < t.num_vertices; ++v) box.extend(Point3(P.row(v).transpose()));
   std::vector<std::pair<std::uint64_t, Point3>> chunk;
   chunk.reserve(chunk_size);
-  double largest_sq = 0;
+  // Each part of a chunk starts from the largest distance found so far. The maximum does not
+  // depend on which parts saw which: a sample is only cut short at or below a distance found.
+  constexpr std::size_t part_size = 1024;
+  std::atomic<double> largest_sq{0.0};
   const auto query_chunk = [&] {
     std::sort(chunk.begin(), chunk.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for(const auto& sample : chunk) largest_sq = std::max(largest_sq, surface.squared_distance(sample.second, largest_sq));
+    for_each_part(chunk.size(), part_size, parallel, [&](std::size_t, std::size_t begin, std::size_t end) {
+      double largest_here = largest_sq.load(std::memory_order_relaxed);
+      for(std::size_t k = begin; k < end; ++k)
+        largest_here = std::max(largest_here, surface.squared_distance(chunk[k].second, largest_here));
+      double seen = largest_sq.load(std::memory_order_relaxed);
+      while(largest_here > seen && !largest_sq.compare_exchange_weak(seen, largest_here, std::memory_order_relaxed)) {}
+    });
     chunk.clear();
   };
   for_each_grid_sample(t, P, spacing, [&](const Point3& p) {
@@ -524,7 +536,7 @@ inline double sampled_one_sided_distance(const Mesh_topology& t, const Positions
     if(chunk.size() == chunk_size) query_chunk();
   });
   query_chunk();
-  return std::sqrt(largest_sq);
+  return std::sqrt(largest_sq.load());
 }
 
 } // namespace internal
