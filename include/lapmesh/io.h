@@ -111,7 +111,7 @@ void triangles_to_mesh(const Polygon_soup& soup, const std::vector<std::array<st
     typename boost::property_map<MutableFaceGraph, CGAL::vertex_point_t>::type>::value_type;
   if(input_vertex) input_vertex->clear();
   // A Surface_mesh of a manifold surface is built at once: the same mesh as the faces added
-  // one by one below, about twice as fast at a million vertices (doc/benchmarks.md).
+  // one by one below, about twice as fast at a million vertices (doc/benchmarks-history.md).
   if constexpr(lapmesh::internal::is_surface_mesh<MutableFaceGraph>::value) {
     if(lapmesh::internal::build_manifold_surface_mesh(soup.points, tris, g)) return;
   }

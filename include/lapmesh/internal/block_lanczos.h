@@ -3,7 +3,7 @@
 //
 // Why a block method. In shift-invert mode every Krylov step is a pair of sparse triangular
 // solves, which are memory bound: a supernodal factor read once serves b right-hand sides in a
-// fraction of the time of b single solves (doc/benchmarks.md has the figures). The
+// fraction of the time of b single solves (doc/benchmarks-history.md has the figures). The
 // re-orthogonalisation against the basis also becomes matrix-matrix products, where
 // single-vector Lanczos (Spectra) spends much of its time in repeated matrix-vector products
 // over the whole basis. The price is more operator applications than single-vector Lanczos:

@@ -12,7 +12,7 @@
 // (allocate_large()). The blocks of Eigen's arrays come from glibc: only those of at least
 // 32 MiB, which glibc maps apart, are advised, on the whole 2 MiB pages inside them, so memory
 // outside a block is never affected; advising smaller ones, inside glibc's heap, measured slower
-// on the project's 2-core test machine (doc/benchmarks.md). `LAPMESH_HUGE_PAGES=0` in the
+// on the project's 2-core test machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the
 // environment turns both off (read once per process).
 //
 // Why prefetches: the passes over corners read the triangles and positions at the indices of

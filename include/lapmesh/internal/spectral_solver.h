@@ -330,7 +330,7 @@ private:
 #endif
 
 /// The shift-invert factor is read by every Krylov step: a CHOLMOD factor is made with compact
-/// supernodes (doc/benchmarks.md: smaller, and faster over a run, than CHOLMOD's default).
+/// supernodes (doc/benchmarks-history.md: smaller, and faster over a run, than CHOLMOD's default).
 template <typename Factor>
 void prepare_for_many_solves(Factor&)
 {}

@@ -3,7 +3,7 @@
 // Why. The Cholesky factor of a smoothing system M - lambda S, where the mass dominates, decays
 // with the distance from the diagonal: far fill entries underflow into the subnormal range,
 // where every operation on Intel CPUs takes a slow micro-code path, and the factorisation takes
-// several times as long (doc/benchmarks.md has the measurement). Subnormal values next to
+// several times as long (doc/benchmarks-history.md has the measurement). Subnormal values next to
 // entries of order one change nothing a factorisation or a solve can resolve, so lapmesh flushes
 // them, on the calling thread, for the duration of its own factorisations and solves, and
 // restores the caller's setting afterwards.
