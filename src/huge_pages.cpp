@@ -10,9 +10,6 @@
 #include <system_error>
 
 #include <unistd.h>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 
 namespace lapmesh_cli {
 
@@ -61,16 +58,6 @@ void restart_with_huge_pages_if_useful(int argc, char** argv)
     setenv("GLIBC_TUNABLES", previous.c_str(), 1);
   else
     unsetenv("GLIBC_TUNABLES");
-}
-
-void keep_heap_between_steps()
-{
-#if defined(__GLIBC__)
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if(tunables && (std::strstr(tunables, "mmap_threshold") || std::strstr(tunables, "trim_threshold"))) return;
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 64 << 20);
-#endif
 }
 
 } // namespace lapmesh_cli

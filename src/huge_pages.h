@@ -1,5 +1,4 @@
-// The command line's memory settings: the restart with transparent huge pages for large inputs,
-// and glibc's heap kept between the steps of a run.
+// The command line's restart with transparent huge pages for large inputs.
 //
 // A large mesh is processed in large buffers that glibc maps afresh from the kernel; faulting them
 // in 4 KiB pages takes a large share of a run on virtual machines. glibc (2.35 and later) backs
@@ -28,12 +27,6 @@ bool huge_pages_restart_wanted(const char* switch_value, const char* tunables, c
 /// Restarts the program (same arguments) with glibc.malloc.hugetlb=1 when
 /// huge_pages_restart_wanted(); returns, changing nothing, when not or when the restart fails.
 void restart_with_huge_pages_if_useful(int argc, char** argv);
-
-/// Puts glibc's allocator in the state its own thresholds reach after the first large block is
-/// freed: blocks up to 32 MiB from the heap, and up to 64 MiB of free heap kept. Until then glibc
-/// hands the top of its heap back after every step of a study and faults it in again at the
-/// next. Does nothing where GLIBC_TUNABLES sets either threshold, or outside glibc.
-void keep_heap_between_steps();
 
 } // namespace lapmesh_cli
 

@@ -3,6 +3,7 @@
 // input or a failed computation.
 #include "cli_common.h"
 #include "huge_pages.h"
+#include "operations/heap.h"
 
 #include <lapmesh/errors.h>
 
@@ -11,7 +12,7 @@
 int main(int argc, char** argv)
 {
   lapmesh_cli::restart_with_huge_pages_if_useful(argc, argv);
-  lapmesh_cli::keep_heap_between_steps();
+  lapmesh_ops::keep_heap_between_calls();
   CLI::App app{"lapmesh: Laplacian geometry processing on triangle meshes "
                "(curvature, spectrum, reconstruction, smoothing, noise)"};
   app.set_version_flag("--version", "lapmesh 0.1.0");

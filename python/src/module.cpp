@@ -4,6 +4,7 @@
 // defaults are the settings structs' own, so that the module spells every kind as the command
 // line does without a list of its own. The GIL is released while the library computes.
 #include "operations/arrays.h"
+#include "operations/heap.h"
 #include "operations/operations.h"
 
 #include <lapmesh/errors.h>
@@ -356,6 +357,8 @@ lapmesh_ops::Curvature_settings operator_settings(const std::string& laplacian, 
 PYBIND11_MODULE(_lapmesh, m)
 {
   m.doc() = "lapmesh's compiled operations (use the package `lapmesh`, which re-exports them).";
+  // Calls on many small meshes would otherwise fault the heap in again at every call.
+  lapmesh_ops::keep_heap_between_calls();
   py::exec(exception_classes, m.attr("__dict__"));
   py::register_exception_translator(&translate);
 

@@ -4,6 +4,7 @@ import math
 import os
 import re
 import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -308,3 +309,41 @@ def test_mesh_object_gives_the_same_results(meshes, tmp_path):
     bad[3, 0] = np.inf
     with pytest.raises(lapmesh.MeshError):
         lapmesh.Mesh(bad, F)
+
+
+# glibc's thresholds, set on import (src/operations/heap.h). An 8 MiB block is mapped apart
+# (mallinfo2's hblks counts such blocks) under glibc's initial thresholds, and comes from the heap
+# once the mmap threshold is 32 MiB. Each case runs in a fresh interpreter, whose allocator no
+# earlier test has moved.
+_HEAP_PROBE = """
+import ctypes, sys
+class Mallinfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in
+                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
+libc = ctypes.CDLL(None)
+libc.mallinfo2.restype = Mallinfo2
+libc.malloc.restype = ctypes.c_void_p
+libc.free.argtypes = [ctypes.c_void_p]
+if sys.argv[1] == "import":
+    import lapmesh
+before = libc.mallinfo2().hblks
+block = libc.malloc(8 << 20)
+print(libc.mallinfo2().hblks - before)
+libc.free(block)
+"""
+
+
+def test_import_keeps_the_heap_between_calls():
+    def mapped_apart(*args, tunables=None):
+        env = dict(os.environ)
+        env.pop("GLIBC_TUNABLES", None)
+        if tunables:
+            env["GLIBC_TUNABLES"] = tunables
+        out = subprocess.run([sys.executable, "-c", _HEAP_PROBE, *args], env=env, check=True, capture_output=True,
+                             text=True)
+        return int(out.stdout.strip())
+
+    assert mapped_apart("plain") == 1  # glibc's initial threshold: the probe can tell
+    assert mapped_apart("import") == 0
+    # A threshold the user sets is left as it is.
+    assert mapped_apart("import", tunables="glibc.malloc.mmap_threshold=131072") == 1

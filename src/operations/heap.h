@@ -1,0 +1,21 @@
+// The one process-wide setting of the front ends: glibc's heap kept between calls.
+//
+// Until a block of 32 MiB has been freed, glibc hands the top of its heap back to the kernel at
+// the end of every call that freed more than a few times its largest block, and the next call
+// faults it in again, one page at a time. A program that calls lapmesh on many small meshes
+// never leaves that state, and each call then costs several times as much. The command line
+// (the viewer included) and the Python module therefore put glibc in the state it reaches by
+// itself after that first large block.
+#ifndef LAPMESH_OPERATIONS_HEAP_H
+#define LAPMESH_OPERATIONS_HEAP_H
+
+namespace lapmesh_ops {
+
+/// Blocks up to 32 MiB from the heap, and up to 64 MiB of free heap kept (glibc's mmap and trim
+/// thresholds). Does nothing where GLIBC_TUNABLES names either threshold, or outside glibc.
+/// Returns whether it set them.
+bool keep_heap_between_calls();
+
+} // namespace lapmesh_ops
+
+#endif
