@@ -289,19 +289,17 @@ def _study_csv(r, doc):
     return "\n".join(lines) + "\n"
 
 
-# glibc's mallopt parameters, and the largest mmap threshold its adaptive threshold reaches on 64 bits.
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-_ADAPTIVE_MMAP_THRESHOLD_MAX = 32 << 20
 _malloc_checked = False
 
 
 def restore_adaptive_malloc():
     """In a process started with MALLOC_TRIM_THRESHOLD_ set, sets glibc's mmap threshold to the
-    largest value its adaptive threshold reaches and the trim threshold to twice that, as the
-    adaptive rule does. distributed's nanny sets that variable for every worker it starts (a local
-    cluster's and `dask-worker`'s alike), and setting any malloc threshold turns glibc's adaptive
-    rule off: every block over 128 KiB is then mapped and page-faulted afresh at each use, which
-    made the tasks markedly slower on a worker than in a serial run (doc/cluster.md). Each task
+    largest value its adaptive threshold reaches (32 MiB) and the trim threshold to twice that, as
+    the adaptive rule does. distributed's nanny sets that variable for every worker it starts (a
+    local cluster's and `dask-worker`'s alike), and setting any malloc threshold turns glibc's
+    adaptive rule off: every block over 128 KiB is then mapped and page-faulted afresh at each use,
+    which made the tasks markedly slower on a worker than in a serial run (doc/cluster.md).
+    Importing lapmesh sets the same thresholds, but leaves those the environment sets. Each task
     calls it; it acts once per process. Returns whether it changed the thresholds (False without
     the variable, with MALLOC_MMAP_THRESHOLD_ set by the user, or without glibc)."""
     global _malloc_checked
@@ -310,14 +308,9 @@ def restore_adaptive_malloc():
     _malloc_checked = True
     if "MALLOC_TRIM_THRESHOLD_" not in os.environ or "MALLOC_MMAP_THRESHOLD_" in os.environ:
         return False  # glibc's default, or thresholds the user chose
-    try:
-        import ctypes
+    from . import _lapmesh
 
-        libc = ctypes.CDLL(None)
-        return bool(libc.mallopt(_M_MMAP_THRESHOLD, _ADAPTIVE_MMAP_THRESHOLD_MAX) and
-                    libc.mallopt(_M_TRIM_THRESHOLD, 2 * _ADAPTIVE_MMAP_THRESHOLD_MAX))
-    except (OSError, AttributeError):  # not glibc
-        return False
+    return _lapmesh._set_steady_heap_thresholds()
 
 
 def find_meshes(mesh_dir):

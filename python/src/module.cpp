@@ -359,6 +359,9 @@ PYBIND11_MODULE(_lapmesh, m)
   m.doc() = "lapmesh's compiled operations (use the package `lapmesh`, which re-exports them).";
   // Calls on many small meshes would otherwise fault the heap in again at every call.
   lapmesh_ops::keep_heap_between_calls();
+  m.def("_set_steady_heap_thresholds", &lapmesh_ops::set_steady_heap_thresholds,
+        "glibc's mmap threshold 32 MiB and trim threshold 64 MiB, whatever the environment says; whether glibc "
+        "took them (lapmesh.batch.restore_adaptive_malloc)");
   py::exec(exception_classes, m.attr("__dict__"));
   py::register_exception_translator(&translate);
 

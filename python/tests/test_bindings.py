@@ -334,16 +334,15 @@ libc.free(block)
 
 
 def test_import_keeps_the_heap_between_calls():
-    def mapped_apart(*args, tunables=None):
-        env = dict(os.environ)
-        env.pop("GLIBC_TUNABLES", None)
-        if tunables:
-            env["GLIBC_TUNABLES"] = tunables
+    def mapped_apart(*args, **variables):
+        env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES" and not k.startswith("MALLOC_")}
+        env.update(variables)
         out = subprocess.run([sys.executable, "-c", _HEAP_PROBE, *args], env=env, check=True, capture_output=True,
                              text=True)
         return int(out.stdout.strip())
 
     assert mapped_apart("plain") == 1  # glibc's initial threshold: the probe can tell
     assert mapped_apart("import") == 0
-    # A threshold the user sets is left as it is.
-    assert mapped_apart("import", tunables="glibc.malloc.mmap_threshold=131072") == 1
+    # A threshold the environment sets is left as it is.
+    assert mapped_apart("import", GLIBC_TUNABLES="glibc.malloc.mmap_threshold=131072") == 1
+    assert mapped_apart("import", MALLOC_MMAP_THRESHOLD_="131072") == 1

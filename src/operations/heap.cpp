@@ -9,15 +9,21 @@
 
 namespace lapmesh_ops {
 
-bool keep_heap_between_calls()
+bool set_steady_heap_thresholds()
 {
 #if defined(__GLIBC__)
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if(tunables && (std::strstr(tunables, "mmap_threshold") || std::strstr(tunables, "trim_threshold"))) return false;
   return mallopt(M_MMAP_THRESHOLD, 32 << 20) == 1 && mallopt(M_TRIM_THRESHOLD, 64 << 20) == 1;
 #else
   return false;
 #endif
+}
+
+bool keep_heap_between_calls()
+{
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  if(tunables && (std::strstr(tunables, "mmap_threshold") || std::strstr(tunables, "trim_threshold"))) return false;
+  if(std::getenv("MALLOC_MMAP_THRESHOLD_") || std::getenv("MALLOC_TRIM_THRESHOLD_")) return false;
+  return set_steady_heap_thresholds();
 }
 
 } // namespace lapmesh_ops

@@ -12,8 +12,13 @@
 namespace lapmesh_ops {
 
 /// Blocks up to 32 MiB from the heap, and up to 64 MiB of free heap kept (glibc's mmap and trim
-/// thresholds). Does nothing where GLIBC_TUNABLES names either threshold, or outside glibc.
-/// Returns whether it set them.
+/// thresholds, the largest values its adaptive rule reaches). Returns whether glibc took them
+/// (false outside glibc).
+bool set_steady_heap_thresholds();
+
+/// set_steady_heap_thresholds(), unless the environment sets a threshold itself
+/// (GLIBC_TUNABLES's mmap_threshold or trim_threshold, MALLOC_MMAP_THRESHOLD_,
+/// MALLOC_TRIM_THRESHOLD_). Returns whether it set them.
 bool keep_heap_between_calls();
 
 } // namespace lapmesh_ops
