@@ -73,7 +73,7 @@ double brute_force_one_sided(const Mesh& from, const Mesh& to, int r)
 struct Triangles
 {
   lapmesh::internal::Positions P;
-  std::vector<lapmesh::internal::Index> triangles;
+  lapmesh::internal::Working_array<lapmesh::internal::Index> triangles;
 };
 
 Triangles fan(int n, bool closed, int first)

@@ -289,7 +289,8 @@ using lapmesh::internal::Index;
 lapmesh::Laplacian_pencil array_pencil(const std::vector<std::array<double, 3>>& points, std::vector<Index> tris,
                                        Laplacian kind = Laplacian::intrinsic_delaunay)
 {
-  const auto t = lapmesh::internal::build_topology(Index(points.size()), std::move(tris));
+  const auto t =
+    lapmesh::internal::build_topology(Index(points.size()), lapmesh::internal::Working_array<Index>(tris.begin(), tris.end()));
   lapmesh::internal::Positions P(points.size(), 3);
   for(std::size_t i = 0; i < points.size(); ++i) P.row(Eigen::Index(i)) << points[i][0], points[i][1], points[i][2];
   lapmesh::Laplacian_pencil out;
@@ -360,7 +361,8 @@ TEST(IntrinsicDelaunay, TuftedCoverTakesNonManifoldAndDegenerateInput)
     EXPECT_NEAR(p.mass.sum(), area, 1e-2 * area);
     EXPECT_GT(p.mass.minCoeff(), 0.0);
 
-    const auto t = lapmesh::internal::build_topology(Index(c.points.size()), c.triangles);
+    const auto t = lapmesh::internal::build_topology(
+      Index(c.points.size()), lapmesh::internal::Working_array<Index>(c.triangles.begin(), c.triangles.end()));
     lapmesh::internal::Positions P(c.points.size(), 3);
     for(std::size_t i = 0; i < c.points.size(); ++i) P.row(Eigen::Index(i)) << c.points[i][0], c.points[i][1], c.points[i][2];
     const auto it = lapmesh::internal::intrinsic_delaunay_triangulation(t, P, 1e-5);

@@ -26,6 +26,7 @@
 
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
+using lapmesh::internal::Working_array;
 
 namespace {
 
@@ -399,9 +400,9 @@ TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
 namespace {
 
 /// The vertex count and the flat triangle list of a soup: the input of build_topology().
-std::pair<int, std::vector<int>> flat(const lapmesh::Triangle_soup& soup)
+std::pair<int, Working_array<int>> flat(const lapmesh::Triangle_soup& soup)
 {
-  std::vector<int> tri;
+  Working_array<int> tri;
   for(const auto& f : soup.triangles) tri.insert(tri.end(), f.begin(), f.end());
   return {int(soup.points.size()), tri};
 }
@@ -456,7 +457,7 @@ TEST(Operators, ParallelTopologyEqualsTheSerialOne)
   std::iota(label.begin(), label.end(), 0);
   std::shuffle(label.begin(), label.end(), std::mt19937(5));
   for(int& v : shuffled.second) v = label[std::size_t(v)];
-  const std::vector<std::pair<int, std::vector<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins, hole, twice,
+  const std::vector<std::pair<int, Working_array<int>>> cases = {torus, flat(lapmesh::plane_patch(300)), fins, hole, twice,
                                                                shuffled};
   auto check = [&] {
     for(const auto& [n, tri] : cases) {
@@ -494,7 +495,7 @@ TEST(Operators, ParallelTopologyNamesTheFirstBadElement)
 {
   using lapmesh::internal::build_topology;
   const auto [n, torus] = flat(lapmesh::torus(400, 200));
-  auto message = [](int vertices, const std::vector<int>& tri, bool parallel) -> std::string {
+  auto message = [](int vertices, const Working_array<int>& tri, bool parallel) -> std::string {
     try {
       build_topology(vertices, tri, parallel);
     } catch(const lapmesh::Mesh_error& e) {
@@ -508,14 +509,14 @@ TEST(Operators, ParallelTopologyNamesTheFirstBadElement)
   repeated[3 * 70000 + 2] = repeated[3 * 70000];
   repeated[3 * 90000] = n + 7;
   for(int& v : unused) v += (v >= 30000) + (v >= 60000);  // vertices 30000 and 60001 in no face
-  const std::vector<std::tuple<int, std::vector<int>, std::string>> cases = {
+  const std::vector<std::tuple<int, Working_array<int>, std::string>> cases = {
     {n, out_of_range, "face 50000 has a vertex index out of range [0, " + std::to_string(n) + ")"},
     {n, repeated, "face 70000 uses the same vertex twice"},
     {n + 2, unused, "vertex 30000 is in no face"}};
 #ifdef CGAL_LINKED_WITH_TBB
   for(const auto& bad : cases) {
     const int vertices = std::get<0>(bad);
-    const std::vector<int>& tri = std::get<1>(bad);
+    const Working_array<int>& tri = std::get<1>(bad);
     const std::string& expected = std::get<2>(bad);
     EXPECT_EQ(message(vertices, tri, false), expected);
     for(int threads : {3, 8}) {
@@ -591,17 +592,17 @@ TEST(Operators, SurfaceMeshIsReadAsAnyFaceGraph)
 namespace {
 
 /// Two cones on an n-gon: the apexes have n corners, the equator vertices 4.
-std::pair<int, std::vector<int>> bipyramid(int n)
+std::pair<int, Working_array<int>> bipyramid(int n)
 {
-  std::vector<int> tri;
+  Working_array<int> tri;
   for(int k = 0; k < n; ++k) tri.insert(tri.end(), {k, (k + 1) % n, n, (k + 1) % n, k, n + 1});
   return {n + 2, tri};
 }
 
 /// The faces of `b` appended to those of `a`, b's vertices renumbered after a's, and b's vertex
 /// `glued` replaced by a's vertex `onto` (one vertex shared, every edge manifold).
-std::pair<int, std::vector<int>> glued_at_a_vertex(const std::pair<int, std::vector<int>>& a,
-                                                   const std::pair<int, std::vector<int>>& b, int glued, int onto)
+std::pair<int, Working_array<int>> glued_at_a_vertex(const std::pair<int, Working_array<int>>& a,
+                                                   const std::pair<int, Working_array<int>>& b, int glued, int onto)
 {
   auto out = a;
   for(int v : b.second) out.second.push_back(v == glued ? onto : a.first + v - (v > glued));
@@ -611,7 +612,7 @@ std::pair<int, std::vector<int>> glued_at_a_vertex(const std::pair<int, std::vec
 
 /// The vertices of a triangle list renumbered by a fixed random permutation, so that a vertex's
 /// neighbours come in no particular order.
-std::pair<int, std::vector<int>> shuffled(std::pair<int, std::vector<int>> mesh, unsigned seed)
+std::pair<int, Working_array<int>> shuffled(std::pair<int, Working_array<int>> mesh, unsigned seed)
 {
   std::vector<int> label(std::size_t(mesh.first));
   std::iota(label.begin(), label.end(), 0);
@@ -629,7 +630,7 @@ std::pair<int, std::vector<int>> shuffled(std::pair<int, std::vector<int>> mesh,
 // vertex numbers.
 TEST(Operators, PatternRowsEqualAHalfedgeMapReference)
 {
-  std::vector<std::pair<std::string, std::pair<int, std::vector<int>>>> cases = {
+  std::vector<std::pair<std::string, std::pair<int, Working_array<int>>>> cases = {
     {"icosphere", shuffled(flat(lapmesh::icosphere(2)), 1)},
     {"plane patch", shuffled(flat(lapmesh::plane_patch(7, 0.3)), 2)},
     {"torus", flat(lapmesh::torus(9, 7))},
@@ -747,13 +748,13 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   two.points.insert(two.points.end(), sphere.points.begin(), sphere.points.end());
   // Hubs of many corners: a closed double cone (hubs 0 and 41 around the ring 1..40) and an open
   // fan (a boundary hub), whose neighbour lists are longer than a short sort's.
-  std::vector<int> double_cone, open_fan;
+  Working_array<int> double_cone, open_fan;
   for(int i = 0; i < 40; ++i) {
     const int j = 1 + i, k = 1 + (i + 1) % 40;
     double_cone.insert(double_cone.end(), {0, j, k, 41, k, j});
     if(i < 39) open_fan.insert(open_fan.end(), {0, j, j + 1});
   }
-  std::vector<std::pair<int, std::vector<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
+  std::vector<std::pair<int, Working_array<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
                                                          flat(lapmesh::plane_patch(6)), flat(two),
                                                          // two triangles that share a vertex only
                                                          {5, {0, 1, 2, 0, 3, 4}},
@@ -781,8 +782,8 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   auto cone_and_fin = double_cone;  // a third face on the hub's edge 0-1
   cone_and_fin.insert(cone_and_fin.end(), {0, 1, 42});
   // Non-manifold (three faces on an edge; opposite orientations): the full topology, with the fan.
-  for(const auto& [n, tri] : {std::make_pair(5, std::vector<int>{0, 1, 2, 1, 0, 3, 0, 1, 4}),
-                              std::make_pair(4, std::vector<int>{0, 1, 2, 0, 1, 3}),
+  for(const auto& [n, tri] : {std::make_pair(5, Working_array<int>{0, 1, 2, 1, 0, 3, 0, 1, 4}),
+                              std::make_pair(4, Working_array<int>{0, 1, 2, 0, 1, 3}),
                               std::make_pair(43, cone_and_fin)}) {
     const auto t = build_corner_topology(n, tri);
     EXPECT_TRUE(t.has_pattern());
@@ -827,9 +828,9 @@ TEST(Operators, PencilsMoveWithoutCopyingTheirStorage)
 }
 
 #ifdef __linux__
-TEST(Operators, LargeTopologyArraysLieInMappingsOfTheirOwnInWholeHugePages)
+TEST(Operators, LargeWorkingArraysLieInMappingsOfTheirOwnInWholeHugePages)
 {
-  using lapmesh::internal::Topology_array;
+  using lapmesh::internal::Large_array;
   ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
   // The mapping that holds `address`, from /proc/self/smaps: its bounds and its VmFlags line.
   struct Mapping
@@ -858,7 +859,7 @@ TEST(Operators, LargeTopologyArraysLieInMappingsOfTheirOwnInWholeHugePages)
   constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
 
   // Grown by push_back, the array moves from operator new to mappings of its own and keeps its values.
-  Topology_array<int> grown;
+  Large_array<int> grown;
   for(int i = 0; i < (3 << 20); ++i) grown.push_back(i);
   for(int i = 0; i < (3 << 20); ++i)
     if(grown[std::size_t(i)] != i) FAIL() << "value " << i << " lost in a reallocation";
@@ -876,16 +877,30 @@ TEST(Operators, LargeTopologyArraysLieInMappingsOfTheirOwnInWholeHugePages)
   }
 
   // Below the threshold: operator new, with no advice.
-  Topology_array<int> small(std::size_t(1) << 16);
+  Large_array<int> small(std::size_t(1) << 16);
   std::iota(small.begin(), small.end(), 0);
   EXPECT_LT(sizeof(int) * small.capacity(), lapmesh::internal::huge_page_mapping_min_bytes);
   EXPECT_EQ(small.back(), (1 << 16) - 1);
   EXPECT_EQ(mapping_of(small.data()).flags.find(" hg"), std::string::npos);
 
   // Freed: the mapping is gone (unless another one has taken the address since).
-  grown = Topology_array<int>();
+  grown = Large_array<int>();
   const Mapping after = mapping_of(reinterpret_cast<const void*>(address));
   EXPECT_TRUE(after.end == 0 || after.flags.find(" hg") == std::string::npos ||
               after.begin != m.begin || after.end != m.end);
+
+  // A working array stays with operator new below glibc's largest mmap threshold and gets a
+  // mapping of its own on whole huge pages above it.
+  using lapmesh::internal::Working_array;
+  const std::size_t below = lapmesh::internal::huge_page_advice_min_bytes / sizeof(int) - 1024;
+  Working_array<int> in_heap(below);
+  in_heap.back() = 1;
+  EXPECT_EQ(mapping_of(in_heap.data()).flags.find(" hg"), std::string::npos);
+  Working_array<int> apart(below + 2048);
+  apart.back() = 1;
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(apart.data()) % huge, 0u);
+  if(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled").good()) {
+    EXPECT_NE(mapping_of(apart.data()).flags.find(" hg"), std::string::npos);
+  }
 }
 #endif

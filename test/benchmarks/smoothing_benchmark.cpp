@@ -59,7 +59,7 @@ const Arrays& test_arrays(int id)
     }
   }
   Arrays a;
-  std::vector<lapmesh::internal::Index> tris;
+  lapmesh::internal::Working_array<lapmesh::internal::Index> tris;
   for(const auto& t : soup.triangles) tris.insert(tris.end(), t.begin(), t.end());
   a.topology = lapmesh::internal::build_topology(lapmesh::internal::Index(soup.points.size()), std::move(tris));
   a.positions.resize(Eigen::Index(soup.points.size()), 3);

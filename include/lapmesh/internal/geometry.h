@@ -33,13 +33,13 @@ using Positions = Vertex_vectors;
 
 struct Corner_geometry
 {
-  // Eigen vectors rather than std::vector: resize() leaves them uninitialised, which saves
-  // a zeroing pass over ~100 bytes per face that the face pass overwrites anyway.
-  Eigen::VectorXd cot;          ///< cot of the corner angle, 3 per face
-  Eigen::VectorXd corner_area;  ///< the corner's share of its vertex's area A_i
-  Eigen::VectorXd angle;        ///< the corner angle (only with want_angles)
-  Eigen::VectorXd face_normal;  ///< 3 per face: cross product = 2 * area * unit normal
-                                ///< (only with want_face_normals)
+  // Working arrays: resize() leaves them uninitialised, which saves a zeroing pass that the
+  // face pass overwrites anyway; large ones get whole huge pages (internal/memory.h).
+  Working_array<double> cot;          ///< cot of the corner angle, 3 per face
+  Working_array<double> corner_area;  ///< the corner's share of its vertex's area A_i
+  Working_array<double> angle;        ///< the corner angle (only with want_angles)
+  Working_array<double> face_normal;  ///< 3 per face: cross product = 2 * area * unit normal
+                                      ///< (only with want_face_normals)
 };
 
 struct Corner_request
@@ -93,7 +93,6 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   g.corner_area.resize(3 * std::size_t(m));
   if(request.want_angles) g.angle.resize(3 * std::size_t(m));
   if(request.want_face_normals) g.face_normal.resize(3 * std::size_t(m));
-  for(const Eigen::VectorXd* array : {&g.cot, &g.corner_area, &g.angle, &g.face_normal}) advise_huge_pages(*array);
   // How many faces ahead the positions of a face's corners are prefetched.
   constexpr Index prefetch_distance = 16;
 
@@ -150,7 +149,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
 }
 
 /// Sum over the corners of each vertex of a per-corner array.
-inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Eigen::VectorXd& per_corner,
+inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Working_array<double>& per_corner,
                                           bool parallel)
 {
   Eigen::VectorXd out(t.num_vertices);

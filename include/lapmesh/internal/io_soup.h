@@ -277,7 +277,7 @@ inline std::vector<std::array<std::size_t, 3>> soup_to_triangles(const Polygon_s
 
   // Fast path: lapmesh's corner topology finds consistently oriented manifold edges (its
   // `manifold` is the full topology's, without building the sparsity pattern).
-  std::vector<lapmesh::internal::Index> flat;
+  lapmesh::internal::Working_array<lapmesh::internal::Index> flat;
   flat.reserve(3 * tris.size());
   for(const auto& t : tris)
     for(std::size_t v : t) flat.push_back(dense[v]);

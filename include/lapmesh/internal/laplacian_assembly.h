@@ -65,7 +65,7 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
   out.mass = gather_corner_sums(t, g.corner_area, parallel);
   // The corner areas go before a stiffness that is not there yet is sized (implicit smoothing
   // releases it between steps): the two are never held together.
-  g.corner_area = Eigen::VectorXd();
+  Working_array<double>().swap(g.corner_area);
   size_stiffness();
   fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
 }

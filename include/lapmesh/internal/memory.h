@@ -7,9 +7,14 @@
 // at a time; on virtual machines each fault is expensive. Where the kernel gives transparent
 // huge pages on request (`/sys/kernel/mm/transparent_hugepage/enabled` set to `madvise`; with
 // `always` it does so anyway, with `never` not at all), a fresh block advised before its first
-// write faults in 2 MiB pages instead. The arrays lapmesh allocates itself (the topology's) of
-// at least 4 MiB get mappings of their own, on 2 MiB boundaries and advised whole
-// (allocate_large()). The blocks of Eigen's arrays come from glibc: only those of at least
+// write faults in 2 MiB pages instead. The topology's arrays (Large_array) of at least 4 MiB get
+// mappings of their own, on 2 MiB boundaries and advised whole (allocate_large()); together they
+// would take the heap past its trim threshold. lapmesh's other working arrays (Working_array: the
+// extracted triangles, the corner geometry) stay in glibc's heap, where a call finds them warm,
+// up to glibc's largest mmap threshold, and get such mappings above it. Where a fault is a trip
+// to the hypervisor, a burst of 4 KiB faults also pushes the mappings of other memory (the
+// caller's mesh) out of its caches, which slows the next pass over that memory. The
+// blocks of Eigen's arrays come from glibc: only those of at least
 // 32 MiB, which glibc maps apart, are advised, on the whole 2 MiB pages inside them, so memory
 // outside a block is never affected; advising smaller ones, inside glibc's heap, measured slower
 // on the project's 2-core test machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the
@@ -28,7 +33,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <new>
+#include <type_traits>
+#include <utility>
+#include <vector>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -81,24 +90,25 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 /// boundary, leaving their first and last 2 MiB in small pages.
 constexpr std::size_t huge_page_mapping_min_bytes = std::size_t(4) << 20;
 
-/// Whether allocate_large() maps a block of `bytes` apart (a function of the size alone, so
-/// that deallocate_large() takes the same branch).
-inline bool maps_apart(std::size_t bytes) noexcept
+/// Whether allocate_large() maps a block of `bytes` apart from `min_bytes` on (a function of
+/// the sizes alone, so that deallocate_large() takes the same branch).
+inline bool maps_apart(std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  return bytes >= huge_page_mapping_min_bytes && huge_pages_enabled();
+  return bytes >= min_bytes && huge_pages_enabled();
 #else
   (void)bytes;
+  (void)min_bytes;
   return false;
 #endif
 }
 
-/// `bytes` of fresh memory: a block of whole 2 MiB pages advised huge when maps_apart(bytes),
-/// else from operator new. Throws std::bad_alloc.
-inline void* allocate_large(std::size_t bytes)
+/// `bytes` of fresh memory: a block of whole 2 MiB pages advised huge when
+/// maps_apart(bytes, min_bytes), else from operator new. Throws std::bad_alloc.
+inline void* allocate_large(std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes)) {
+  if(maps_apart(bytes, min_bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
     // Map one huge page more and unmap what lies outside the first aligned block.
@@ -115,17 +125,65 @@ inline void* allocate_large(std::size_t bytes)
   return ::operator new(bytes);
 }
 
-/// Frees a block of allocate_large(bytes).
-inline void deallocate_large(void* p, std::size_t bytes) noexcept
+/// Frees a block of allocate_large(bytes, min_bytes).
+inline void deallocate_large(void* p, std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes)) {
+  if(maps_apart(bytes, min_bytes)) {
     munmap(p, round_up_to_huge_pages(bytes));
     return;
   }
 #endif
   ::operator delete(p);
 }
+
+/// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose blocks
+/// of at least MinBytesApart are mappings of their own in huge pages (allocate_large()).
+/// lapmesh's own large arrays are written in full right after they are sized, in parallel under
+/// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page faults
+/// of every fresh page on one thread.
+template <typename T, std::size_t MinBytesApart = huge_page_mapping_min_bytes>
+struct Large_array_allocator : std::allocator<T>
+{
+  template <typename U>
+  struct rebind
+  {
+    using other = Large_array_allocator<U, MinBytesApart>;
+  };
+  Large_array_allocator() = default;
+  template <typename U>
+  Large_array_allocator(const Large_array_allocator<U, MinBytesApart>&) noexcept
+  {}
+  T* allocate(std::size_t count)
+  {
+    if(count > std::size_t(-1) / sizeof(T)) throw std::bad_alloc();
+    return static_cast<T*>(allocate_large(count * sizeof(T), MinBytesApart));
+  }
+  void deallocate(T* p, std::size_t count) noexcept { deallocate_large(p, count * sizeof(T), MinBytesApart); }
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
+  {
+    ::new(static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args)
+  {
+    ::new(static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+/// An array of a topology: a std::vector that resize() does not zero, out of glibc's heap from
+/// 4 MiB on. A topology's arrays are many and large together: in the heap they would take it
+/// past its trim threshold.
+template <typename T>
+using Large_array = std::vector<T, Large_array_allocator<T>>;
+
+/// A working array of a call that is not the topology's (the extracted triangles and vertices,
+/// the corner geometry): in glibc's heap, which keeps it warm for the next call, below glibc's
+/// largest mmap threshold; above it, in a mapping of its own on whole huge pages rather than in
+/// glibc's, whose first and last 2 MiB are small pages.
+template <typename T>
+using Working_array = std::vector<T, Large_array_allocator<T, huge_page_advice_min_bytes>>;
 
 /// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.
 template <typename Derived>

@@ -67,10 +67,10 @@ struct Extracted_arrays
 {
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
   Positions positions;                      ///< one row per index of the numbering
-  std::vector<Index> triangles;             ///< 3 vertex indices per face, in face order
-  std::vector<vertex_descriptor> vertices;  ///< the first vertex of each index
+  Working_array<Index> triangles;             ///< 3 vertex indices per face, in face order
+  Working_array<vertex_descriptor> vertices;  ///< the first vertex of each index
   /// Every vertex with its index, in `vertices(tm)` order (welded vertices share one).
-  std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
+  Working_array<std::pair<vertex_descriptor, Index>> vertex_rows;
 };
 
 /// A mesh ready for computation: the topology and positions of the rows that are in a face.
@@ -80,13 +80,13 @@ struct Extracted_mesh
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
   Mesh_topology topology;
   Positions positions;                      ///< per topology vertex
-  std::vector<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
+  Working_array<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
   Index num_rows = 0;                       ///< rows of the numbering (results' size)
   /// The row of each topology vertex, increasing; empty when every row is in a face (the
   /// identity).
   std::vector<Index> row;
   /// Every vertex with its row, in `vertices(tm)` order.
-  std::vector<std::pair<vertex_descriptor, Index>> vertex_rows;
+  Working_array<std::pair<vertex_descriptor, Index>> vertex_rows;
 
   Index num_rows_in_no_face() const { return row.empty() ? 0 : num_rows - Index(row.size()); }
 
@@ -209,7 +209,7 @@ Extracted_arrays<TriangleMesh> read_with_index_map(const TriangleMesh& tm, Verte
   }
   for(Index i = 0; i < n; ++i)
     if(!seen[i]) throw Mesh_error("the vertex index map gives no vertex the index " + std::to_string(i));
-  std::vector<Index>& triangles = out.triangles;
+  Working_array<Index>& triangles = out.triangles;
   triangles.reserve(3 * faces(tm).size());
   Index f_index = 0;
   for(typename GT::face_descriptor f : faces(tm)) {
@@ -251,8 +251,6 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   if(!non_finite.empty())
     throw Mesh_error("vertex " + std::to_string(non_finite.get()) + " has a non-finite coordinate",
                      Mesh_error::Element::vertex, non_finite.get());
-  out.triangles.reserve(3 * std::size_t(m));
-  advise_huge_pages(out.triangles.data(), sizeof(Index) * out.triangles.capacity());
   out.triangles.resize(3 * std::size_t(m));
   First_index<Index> not_triangle;
   for_each_index(m, parallel, [&](Index f) {
@@ -346,7 +344,7 @@ template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
                                           Topology_detail detail = Topology_detail::pattern, bool parallel = false)
 {
-  const auto topology = [detail, parallel](Index n, std::vector<Index>&& triangles, Corner_incidence&& incidence) {
+  const auto topology = [detail, parallel](Index n, Working_array<Index>&& triangles, Corner_incidence&& incidence) {
     return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(incidence))
                                               : build_corner_topology(n, std::move(triangles), parallel, std::move(incidence));
   };

@@ -201,7 +201,7 @@ public:
   static constexpr Index fan_faces = 32;
 
   Surface_distance() = default;
-  Surface_distance(const Positions& P, const std::vector<Index>& triangles)
+  Surface_distance(const Positions& P, const Working_array<Index>& triangles)
   {
     using Corners = std::array<Index, 3>;
     const std::size_t num_faces = triangles.size() / 3;

@@ -36,45 +36,6 @@ namespace internal {
 /// Index type of vertices, corners and matrix slots; Eigen's default StorageIndex.
 using Index = int;
 
-/// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose large
-/// blocks are mappings of their own in huge pages (allocate_large()). The large arrays of a
-/// topology are written in full right after they are sized, in parallel under
-/// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page
-/// faults of every fresh page on one thread.
-template <typename T>
-struct Large_array_allocator : std::allocator<T>
-{
-  template <typename U>
-  struct rebind
-  {
-    using other = Large_array_allocator<U>;
-  };
-  Large_array_allocator() = default;
-  template <typename U>
-  Large_array_allocator(const Large_array_allocator<U>&) noexcept
-  {}
-  T* allocate(std::size_t count)
-  {
-    if(count > std::size_t(-1) / sizeof(T)) throw std::bad_alloc();
-    return static_cast<T*>(allocate_large(count * sizeof(T)));
-  }
-  void deallocate(T* p, std::size_t count) noexcept { deallocate_large(p, count * sizeof(T)); }
-  template <typename U>
-  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
-  {
-    ::new(static_cast<void*>(p)) U;
-  }
-  template <typename U, typename... Args>
-  void construct(U* p, Args&&... args)
-  {
-    ::new(static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-
-/// An array of a topology: a std::vector that resize() does not zero.
-template <typename T>
-using Topology_array = std::vector<T, Large_array_allocator<T>>;
-
 inline Index next_corner(Index c) { return c % 3 == 2 ? c - 2 : c + 1; }
 inline Index prev_corner(Index c) { return c % 3 == 0 ? c + 2 : c - 1; }
 
@@ -154,22 +115,22 @@ struct Mesh_topology
   Index num_boundary_edges = 0;
 
   /// 3 vertex indices per face, in the face's orientation.
-  std::vector<Index> triangles;
+  Working_array<Index> triangles;
 
   /// The corners incident to vertex v are vertex_corners[corner_begin[v] .. corner_begin[v+1]).
-  Topology_array<Index> corner_begin;
-  Topology_array<Index> vertex_corners;
+  Large_array<Index> corner_begin;
+  Large_array<Index> vertex_corners;
 
   /// Symmetric sparsity pattern, diagonal included, sorted within each row. Because it is
   /// symmetric, it is at once the CSR and the CSC (Eigen column-major) structure.
-  Topology_array<Index> outer;  // num_vertices + 1
-  Topology_array<Index> inner;  // number of non-zeros
-  Topology_array<Index> diagonal_slot;
+  Large_array<Index> outer;  // num_vertices + 1
+  Large_array<Index> inner;  // number of non-zeros
+  Large_array<Index> diagonal_slot;
 
   /// For the slot (i, j), j != i: the corner opposite the halfedge i->j and the corner
   /// opposite the halfedge j->i (-1 where that side has no face, i.e. on the boundary).
   /// The diagonal slots hold {-1, -1}.
-  Topology_array<std::array<Index, 2>> slot_corners;
+  Large_array<std::array<Index, 2>> slot_corners;
 
   std::vector<char> on_boundary;
 
@@ -190,7 +151,7 @@ struct Mesh_topology
 
 /// Throws Mesh_error for the first face of `tri` with a vertex index out of [0, n) or a
 /// repeated vertex.
-inline void require_valid_faces(Index n, const std::vector<Index>& tri, bool parallel)
+inline void require_valid_faces(Index n, const Working_array<Index>& tri, bool parallel)
 {
   const Index m = static_cast<Index>(tri.size() / 3);
   const auto valid = [&](Index f) {
@@ -225,8 +186,8 @@ constexpr Index min_ranges_sorted_into = 4;
 /// vertex_corners[corner_begin[v] .. corner_begin[v + 1]); a vertex in no face has none.
 struct Corner_incidence
 {
-  Topology_array<Index> corner_begin;
-  Topology_array<Index> vertex_corners;
+  Large_array<Index> corner_begin;
+  Large_array<Index> vertex_corners;
 
   bool empty() const { return corner_begin.empty(); }
   /// The first vertex with no corner, or -1.
@@ -277,7 +238,7 @@ void counting_sort_corners(Index n, std::size_t corners, const VertexOf& vertex_
 /// of (vertex, corner) pairs sorted into the ranges beforehand: each thread counts the corners
 /// of a chunk of the faces per range and, after a prefix sum over (range, chunk), scatters the
 /// chunk's pairs, so that each range's pairs are in ascending corner order.
-inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>& tri, bool parallel)
+inline Corner_incidence sort_corners_by_vertex(Index n, const Working_array<Index>& tri, bool parallel)
 {
   Corner_incidence out;
   const std::size_t corners = tri.size(), faces = corners / 3;
@@ -303,7 +264,7 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
     range_first[r] = Index(std::min<std::uint64_t>(std::uint64_t(n), ((std::uint64_t(r) << 32) + scale - 1) / scale));
   // Range r's corners are vertex_corners[range_start[r] .. range_start[r + 1]).
   std::vector<std::size_t> range_start(width + 1, 0);
-  Topology_array<std::array<Index, 2>> pairs;  // (vertex, corner), sorted into ranges at range_start
+  Large_array<std::array<Index, 2>> pairs;  // (vertex, corner), sorted into ranges at range_start
   if(sorted_into_ranges) {
     // As many chunks of faces as ranges; offsets[k * width + r]: where chunk k's pairs of range r
     // go. A face whose corners are in one range, as most are, moves its range's counter once.
@@ -391,7 +352,7 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const std::vector<Index>
 /// of range, a face with a repeated vertex and a vertex in no face (the first of each, as
 /// serially). `incidence`: sort_corners_by_vertex() of the same triangles when the caller has
 /// it, or empty.
-inline Mesh_topology build_corner_incidence(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+inline Mesh_topology build_corner_incidence(Index num_vertices, Working_array<Index> triangles, bool parallel = false,
                                             Corner_incidence incidence = {})
 {
   Mesh_topology t;
@@ -423,8 +384,8 @@ struct Pattern_rows
   std::array<Index, 2>* slice_slot_corners = nullptr;
   std::size_t slice_capacity = 0;
   std::size_t in_slice = 0;  // the first in_slice entries are in the slice, the others in own_*
-  Topology_array<Index> own_inner;
-  Topology_array<std::array<Index, 2>> own_slot_corners;
+  Large_array<Index> own_inner;
+  Large_array<std::array<Index, 2>> own_slot_corners;
   std::size_t size = 0;
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
   Index num_edges = 0;
@@ -490,8 +451,8 @@ struct Pattern_rows
   /// Frees the part's own arrays once the rows are joined.
   void release()
   {
-    Topology_array<Index>().swap(own_inner);
-    Topology_array<std::array<Index, 2>>().swap(own_slot_corners);
+    Large_array<Index>().swap(own_inner);
+    Large_array<std::array<Index, 2>>().swap(own_slot_corners);
   }
 };
 
@@ -557,7 +518,7 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
 /// t.diagonal_slot[i] relative to the part's first slot, and t.on_boundary[i].
 inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
 {
-  const std::vector<Index>& tri = t.triangles;
+  const Working_array<Index>& tri = t.triangles;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
   // i, opposite the corner at r) and r->i (opposite q). They are packed as
   // (neighbour << 33 | side << 32 | corner) so that sorting them as integers orders them by
@@ -631,7 +592,7 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
 /// or two neighbouring faces with opposite orientations) makes the topology non-manifold
 /// (`manifold` false, the edge in `fan_slot`). In parallel (TBB) the rows are built in parts
 /// and joined in order: the result equals the serial one.
-inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> triangles, bool parallel = false,
                                    Corner_incidence incidence = {})
 {
   Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(incidence));
@@ -691,8 +652,8 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
     t.slot_corners = std::move(parts[0].own_slot_corners);
     return t;
   }
-  Topology_array<Index> inner(std::size_t(slot_base.back()));
-  Topology_array<std::array<Index, 2>> slot_corners(std::size_t(slot_base.back()));
+  Large_array<Index> inner(std::size_t(slot_base.back()));
+  Large_array<std::array<Index, 2>> slot_corners(std::size_t(slot_base.back()));
   for_each_part(n, rows_per_part, true, [&](Index p, Index, Index) {
     Pattern_rows& part = parts[std::size_t(p)];
     part.copy_to(inner.data() + slot_base[std::size_t(p)], slot_corners.data() + slot_base[std::size_t(p)]);
@@ -709,12 +670,12 @@ inline Mesh_topology build_topology(Index num_vertices, std::vector<Index> trian
 /// false), which cost most of build_topology(). Every field it fills equals build_topology()'s.
 /// A non-manifold mesh gets the full topology, whose edge fans name the edge in
 /// require_manifold()'s message.
-inline Mesh_topology build_corner_topology(Index num_vertices, std::vector<Index> triangles, bool parallel = false,
+inline Mesh_topology build_corner_topology(Index num_vertices, Working_array<Index> triangles, bool parallel = false,
                                           Corner_incidence incidence = {})
 {
   Mesh_topology t = build_corner_incidence(num_vertices, std::move(triangles), parallel, std::move(incidence));
   const Index n = num_vertices;
-  const std::vector<Index>& tri = t.triangles;
+  const Working_array<Index>& tri = t.triangles;
   t.on_boundary.assign(n, 0);
   // Around vertex i each corner gives a halfedge i->q (out) and one r->i (in). An edge is on
   // the boundary when only one of its halfedges exists; a halfedge seen twice (two faces on one
