@@ -12,13 +12,13 @@
 // would take the heap past its trim threshold. lapmesh's other working arrays (Working_array: the
 // extracted triangles, the corner geometry) stay in glibc's heap, where a call finds them warm,
 // up to glibc's largest mmap threshold, and get such mappings above it. Where a fault is a trip
-// to the hypervisor, a burst of 4 KiB faults also pushes the mappings of other memory (the
-// caller's mesh) out of its caches, which slows the next pass over that memory. The
-// blocks of Eigen's arrays come from glibc: only those of at least
-// 32 MiB, which glibc maps apart, are advised, on the whole 2 MiB pages inside them, so memory
-// outside a block is never affected; advising smaller ones, inside glibc's heap, measured slower
-// on the project's 2-core test machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the
-// environment turns both off (read once per process).
+// to the hypervisor, a burst of 4 KiB faults also slows the next pass over other memory (the
+// caller's mesh), likely because its mappings fall out of the hypervisor's caches. The blocks of
+// Eigen's arrays come from glibc: only those of at least 32 MiB, which glibc maps apart, are
+// advised, on the whole 2 MiB pages inside them, so memory outside a block is never affected;
+// advising smaller ones, inside glibc's heap, measured slower on the project's 2-core test
+// machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the environment turns both off
+// (read once per process).
 //
 // Why prefetches: the passes over corners read the triangles and positions at the indices of
 // the neighbours, which on a large mesh miss the caches; the addresses are known a few

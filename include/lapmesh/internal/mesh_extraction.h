@@ -66,7 +66,7 @@ template <typename TriangleMesh>
 struct Extracted_arrays
 {
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
-  Positions positions;                      ///< one row per index of the numbering
+  Positions positions;                        ///< one row per index of the numbering
   Working_array<Index> triangles;             ///< 3 vertex indices per face, in face order
   Working_array<vertex_descriptor> vertices;  ///< the first vertex of each index
   /// Every vertex with its index, in `vertices(tm)` order (welded vertices share one).
@@ -79,9 +79,9 @@ struct Extracted_mesh
 {
   using vertex_descriptor = typename boost::graph_traits<TriangleMesh>::vertex_descriptor;
   Mesh_topology topology;
-  Positions positions;                      ///< per topology vertex
+  Positions positions;                        ///< per topology vertex
   Working_array<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
-  Index num_rows = 0;                       ///< rows of the numbering (results' size)
+  Index num_rows = 0;                         ///< rows of the numbering (results' size)
   /// The row of each topology vertex, increasing; empty when every row is in a face (the
   /// identity).
   std::vector<Index> row;
