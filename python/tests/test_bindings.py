@@ -200,12 +200,31 @@ def test_denoise_study_equals_cli(meshes, cli, tmp_path):
     for key in ("scheme", "laplacian", "status"):
         assert r[key] == [row[key] for row in rows]
     assert r["error"] == [row["error"] for row in rows]
+    assert list(r["hausdorff_coarsening"]) == [1.0] * len(rows)
     with pytest.raises(lapmesh.ParameterError) as e:
         lapmesh.denoise_study(V, F, lambdas=[0.1, -1])
     assert e.value.parameter == "lambdas"
     with pytest.raises(lapmesh.ParameterError) as e:
         lapmesh.denoise_study(V, F, schemes=["implicit", "fast"])
     assert e.value.parameter == "schemes"
+
+
+def test_denoise_study_says_how_much_the_hausdorff_grid_was_coarsened(meshes, cli, tmp_path):
+    # A spacing far below the edge length would hold more than 16 samples per corner: the grid is
+    # coarsened, by the factor that the command line reports for the same study.
+    path = os.path.join(meshes, "head.off")
+    V, F = lapmesh.read_mesh(path)
+    options = dict(levels=[0.05], schemes=["explicit"], laplacians=["uniform"], lambdas=[0.5], iterations=1)
+    r = lapmesh.denoise_study(V, F, hausdorff_spacing=1e-5, **options)
+    largest = max(r["hausdorff_coarsening"])
+    assert 1000 < largest < 20000  # about 5300: on a mesh this small the grid keeps about 2^20 samples
+    assert min(r["hausdorff_coarsening"]) >= 1
+    said = cli("denoise-study", path, "-o", tmp_path / "s.csv", "--levels", "0.05", "--schemes", "explicit",
+               "--laplacians", "uniform", "--lambdas", "0.5", "--iterations", 1, "--hausdorff-spacing", "1e-5",
+               "--no-progress").stdout
+    reported = float(re.search(r"coarsened, up to ([0-9.e+]+) times", said).group(1))
+    assert reported == pytest.approx(largest, rel=1e-5)  # the line prints six digits
+    assert max(lapmesh.denoise_study(V, F, **options)["hausdorff_coarsening"]) == 1.0
 
 
 def test_laplacian_matrix(mesh):
