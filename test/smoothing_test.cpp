@@ -443,6 +443,78 @@ TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
   const Eigen::MatrixXd reference = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(B);
   EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff());
 }
+
+TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsPerEntry)
+{
+  // The graph Laplacian of a 3D grid: AMD's factor needs many flops per entry there, and
+  // METIS's factor is smaller. A path's factor needs few: AMD stays however large it is taken to
+  // be. Whatever the ordering, the solve equals Eigen's LDL^T solution of the same system.
+  using lapmesh::internal::Constrained_spd_system;
+  using lapmesh::internal::Index;
+  using lapmesh::internal::Spd_direct_solver;
+  const auto laplacian = [](int side, int dimensions) {
+    const int n = dimensions == 3 ? side * side * side : side;
+    std::vector<Eigen::Triplet<double>> entries;
+    const auto link = [&](int a, int b) {
+      entries.emplace_back(a, b, 1.0);
+      entries.emplace_back(b, a, 1.0);
+      entries.emplace_back(a, a, -1.0);
+      entries.emplace_back(b, b, -1.0);
+    };
+    for(int i = 0; i < n; ++i) {
+      if(dimensions == 1) {
+        if(i + 1 < n) link(i, i + 1);
+        continue;
+      }
+      const int x = i % side, y = (i / side) % side, z = i / (side * side);
+      if(x + 1 < side) link(i, i + 1);
+      if(y + 1 < side) link(i, i + side);
+      if(z + 1 < side) link(i, i + side * side);
+    }
+    Eigen::SparseMatrix<double> S(n, n);
+    S.setFromTriplets(entries.begin(), entries.end());
+    return S;
+  };
+  struct Outcome
+  {
+    std::string ordering;
+    double factor_entries = 0;
+    double error = std::numeric_limits<double>::infinity();  // until a solve is compared
+  };
+  const auto solve = [](const Eigen::SparseMatrix<double>& S, double large_factor_entries) {
+    const Index n = Index(S.rows());
+    const std::vector<char> free_mask(std::size_t(n), 1);
+    const Eigen::VectorXd mass = Eigen::VectorXd::Ones(n);
+    Spd_direct_solver solver(true);
+    if(large_factor_entries >= 0) solver.set_large_factor_entries(large_factor_entries);
+    Constrained_spd_system natural(S, free_mask);
+    const std::vector<Index> order = solver.analyze(natural.matrix(), 1);
+    Constrained_spd_system ordered(S, free_mask, order);
+    solver.analyze_in_order(ordered.matrix());
+    ordered.fill_matrix(S, -1.0, mass, 1.0);
+    Outcome outcome;
+    outcome.ordering = solver.ordering();
+    outcome.factor_entries = solver.factor_entries();
+    if(!solver.factorize(ordered.matrix())) return outcome;
+    const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, 3);
+    Eigen::MatrixXd B(n, 3), solution = X;
+    ordered.gather(X, B);
+    EXPECT_TRUE(solver.solve_in_place(B));
+    ordered.scatter(B, solution);
+    natural.fill_matrix(S, -1.0, mass, 1.0);
+    const Eigen::SparseMatrix<double> full = natural.matrix().selfadjointView<Eigen::Lower>();
+    const Eigen::MatrixXd expected = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(X);
+    outcome.error = (solution - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
+    return outcome;
+  };
+  const Eigen::SparseMatrix<double> grid = laplacian(26, 3), path = laplacian(20000, 1);
+  const Outcome by_default = solve(grid, -1), large = solve(grid, 0), path_large = solve(path, 0);
+  EXPECT_EQ(by_default.ordering, "amd");  // its factor is far below the default bar
+  EXPECT_EQ(large.ordering, "metis");
+  EXPECT_LT(large.factor_entries, 0.85 * by_default.factor_entries);
+  EXPECT_EQ(path_large.ordering, "amd");
+  for(const Outcome* o : {&by_default, &large, &path_large}) EXPECT_LE(o->error, 1e-12) << o->ordering;
+}
 #endif
 
 TEST(Smoothing, CholmodAndEigenSolversAgreeWithConstraintsOverManySteps)

@@ -158,6 +158,7 @@ public:
                 ///< exceed 500 (regular grids such as a torus, where METIS's factor needs far
                 ///< fewer flops); the better of the two is kept. The METIS analysis costs much
                 ///< more than AMD's.
+    metis,      ///< METIS only (analyzePattern() fails where CHOLMOD was built without it)
     given       ///< none: the matrix is already in a fill-reducing, postordered order (the
                 ///< permutation() of an earlier analysis applied to it). CHOLMOD then factorises
                 ///< the lower triangle as it is; with any other ordering it first makes two
@@ -199,7 +200,9 @@ public:
       cholmod().nmethods = 0;
     } else {
       cholmod().nmethods = 1;
-      cholmod().method[0].ordering = ordering == Ordering::amd ? CHOLMOD_AMD : CHOLMOD_NATURAL;
+      cholmod().method[0].ordering = ordering == Ordering::amd     ? CHOLMOD_AMD
+                                     : ordering == Ordering::metis ? CHOLMOD_METIS
+                                                                   : CHOLMOD_NATURAL;
     }
   }
   /// Whether the factor is of the matrix as given (Ordering::given): no permutation to apply.
