@@ -49,7 +49,8 @@
 namespace lapmesh {
 namespace internal {
 
-/// Blocks smaller than this are not advised: glibc's largest mmap threshold.
+/// glibc's largest mmap threshold: smaller blocks are not advised, and a Working_array of
+/// fewer bytes stays in glibc's heap.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
 /// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.

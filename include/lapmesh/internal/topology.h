@@ -20,9 +20,6 @@
 #include <algorithm>
 #include <array>
 #include <iterator>
-#include <memory>
-#include <new>
-#include <type_traits>
 #include <utility>
 #include <cmath>
 #include <cstdint>

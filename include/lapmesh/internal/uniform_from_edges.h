@@ -76,9 +76,8 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   W.resize(n, n);
   Index* outer = W.outerIndexPtr();
   std::fill(outer, outer + n + 1, Index(0));
-  std::vector<Index> ends;
+  Working_array<Index> ends;
   ends.reserve(2 * std::size_t(edges(tm).size()));
-  advise_huge_pages(ends.data(), sizeof(Index) * ends.capacity());
   for(typename GT::edge_descriptor e : edges(tm)) {
     const typename GT::halfedge_descriptor h = halfedge(e, tm);
     if(is_border(h, tm) && is_border(opposite(h, tm), tm)) continue;
