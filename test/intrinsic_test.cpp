@@ -284,13 +284,13 @@ TEST(IntrinsicDelaunay, EverySubcommandTakesIt)
 namespace {
 
 using lapmesh::internal::Index;
+using lapmesh::internal::Working_array;
 
 // (S, M) of the intrinsic Delaunay Laplacian straight from arrays (no Surface_mesh).
-lapmesh::Laplacian_pencil array_pencil(const std::vector<std::array<double, 3>>& points, std::vector<Index> tris,
+lapmesh::Laplacian_pencil array_pencil(const std::vector<std::array<double, 3>>& points, Working_array<Index> tris,
                                        Laplacian kind = Laplacian::intrinsic_delaunay)
 {
-  const auto t =
-    lapmesh::internal::build_topology(Index(points.size()), lapmesh::internal::Working_array<Index>(tris.begin(), tris.end()));
+  const auto t = lapmesh::internal::build_topology(Index(points.size()), std::move(tris));
   lapmesh::internal::Positions P(points.size(), 3);
   for(std::size_t i = 0; i < points.size(); ++i) P.row(Eigen::Index(i)) << points[i][0], points[i][1], points[i][2];
   lapmesh::Laplacian_pencil out;
@@ -298,7 +298,7 @@ lapmesh::Laplacian_pencil array_pencil(const std::vector<std::array<double, 3>>&
   return out;
 }
 
-double total_area(const std::vector<std::array<double, 3>>& points, const std::vector<Index>& tris)
+double total_area(const std::vector<std::array<double, 3>>& points, const Working_array<Index>& tris)
 {
   double area = 0;
   for(std::size_t f = 0; f < tris.size() / 3; ++f) {
@@ -313,7 +313,7 @@ struct Soup_case
 {
   std::string name;
   std::vector<std::array<double, 3>> points;
-  std::vector<Index> triangles;
+  Working_array<Index> triangles;
 };
 
 std::vector<Soup_case> non_manifold_cases()
@@ -361,8 +361,7 @@ TEST(IntrinsicDelaunay, TuftedCoverTakesNonManifoldAndDegenerateInput)
     EXPECT_NEAR(p.mass.sum(), area, 1e-2 * area);
     EXPECT_GT(p.mass.minCoeff(), 0.0);
 
-    const auto t = lapmesh::internal::build_topology(
-      Index(c.points.size()), lapmesh::internal::Working_array<Index>(c.triangles.begin(), c.triangles.end()));
+    const auto t = lapmesh::internal::build_topology(Index(c.points.size()), c.triangles);
     lapmesh::internal::Positions P(c.points.size(), 3);
     for(std::size_t i = 0; i < c.points.size(); ++i) P.row(Eigen::Index(i)) << c.points[i][0], c.points[i][1], c.points[i][2];
     const auto it = lapmesh::internal::intrinsic_delaunay_triangulation(t, P, 1e-5);

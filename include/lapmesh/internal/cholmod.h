@@ -158,6 +158,9 @@ public:
                 ///< exceed 500 (regular grids such as a torus, where METIS's factor needs far
                 ///< fewer flops); the better of the two is kept. The METIS analysis costs much
                 ///< more than AMD's.
+    amd_or_metis,  ///< AMD, and METIS too when AMD's factor is large (large_factor_entries())
+                   ///< and meets metis_min_flops_per_entry: such a factor is most of a call's
+                   ///< memory, and METIS's is much smaller. The smaller of the two is kept.
     metis,      ///< METIS only (analyzePattern() fails where CHOLMOD was built without it)
     given       ///< none: the matrix is already in a fill-reducing, postordered order (the
                 ///< permutation() of an earlier analysis applied to it). CHOLMOD then factorises
@@ -194,27 +197,38 @@ public:
   }
   void set_ordering(Ordering ordering)
   {
+    m_ordering = ordering;
     // A postorder of the given order would be a permutation again, and the copies with it.
     cholmod().postorder = ordering != Ordering::given;
     if(ordering == Ordering::automatic) {
       cholmod().nmethods = 0;
     } else {
       cholmod().nmethods = 1;
-      cholmod().method[0].ordering = ordering == Ordering::amd     ? CHOLMOD_AMD
-                                     : ordering == Ordering::metis ? CHOLMOD_METIS
-                                                                   : CHOLMOD_NATURAL;
+      cholmod().method[0].ordering = ordering == Ordering::metis ? CHOLMOD_METIS
+                                     : ordering == Ordering::given ? CHOLMOD_NATURAL
+                                                                   : CHOLMOD_AMD;
     }
   }
   /// Whether the factor is of the matrix as given (Ordering::given): no permutation to apply.
   bool in_given_order() const { return m_cholmodFactor && m_cholmodFactor->ordering == CHOLMOD_NATURAL; }
 
+  /// CHOLMOD's own bar for trying METIS after AMD: below it METIS's factor is barely smaller.
+  static constexpr double metis_min_flops_per_entry = 500;
+  /// The factor entries from which Ordering::amd_or_metis tries METIS (256 MiB of values unless set).
+  double large_factor_entries() const { return m_large_factor_entries; }
+  void set_large_factor_entries(double entries) { m_large_factor_entries = entries; }
+
   void analyzePattern(const MatrixType& A)
   {
-    {
-      Serial_openmp_scope serial;
-      Base::analyzePattern(A);
-    }
-    release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
+    analyze_once(A);
+    if(m_ordering != Ordering::amd_or_metis || info() != Eigen::Success) return;
+    const cholmod_common& common = cholmod();
+    if(common.lnz < m_large_factor_entries || common.fl < metis_min_flops_per_entry * common.lnz) return;
+    const double amd_entries = common.lnz;
+    cholmod().method[0].ordering = CHOLMOD_METIS;
+    analyze_once(A);
+    cholmod().method[0].ordering = CHOLMOD_AMD;
+    if(info() != Eigen::Success || !(common.lnz < amd_entries)) analyze_once(A);  // missing, or no better
   }
   void factorize(const MatrixType& A)
   {
@@ -300,6 +314,18 @@ public:
   }
 
 private:
+  void analyze_once(const MatrixType& A)
+  {
+    {
+      Serial_openmp_scope serial;
+      Base::analyzePattern(A);
+    }
+    release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
+  }
+
+  Ordering m_ordering = Ordering::amd;
+  double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
+
   /// A column-major rows x cols block at `data`, as CHOLMOD's dense type (no copy).
   static cholmod_dense dense_view(double* data, Eigen::Index rows, Eigen::Index cols)
   {

@@ -156,9 +156,8 @@ private:
 /// METIS when the analysis serves at least `automatic_ordering_min_factorizations`
 /// factorisations: METIS orders much more slowly than AMD and pays only through cheaper
 /// factorisations on regular grids; where it saves nothing CHOLMOD's rule keeps AMD. For fewer
-/// factorisations METIS is tried only when AMD's factor is large (large_factor_entries()) and
-/// meets CHOLMOD's bar for trying METIS: there the factor is most of the call's memory, and
-/// METIS's is much smaller.
+/// factorisations METIS is tried only when AMD's factor is large as well
+/// (Cholmod_supernodal_llt::Ordering::amd_or_metis).
 class Spd_direct_solver
 {
 public:
@@ -185,12 +184,16 @@ public:
   }
 
   static constexpr int automatic_ordering_min_factorizations = 6;
-  /// CHOLMOD's own bar for trying METIS after AMD: below it METIS's factor is barely smaller.
-  static constexpr double metis_min_flops_per_entry = 500;
-  /// The number of factor entries from which METIS is tried beside AMD even for a single
-  /// factorisation (when the flops per entry reach metis_min_flops_per_entry).
-  double large_factor_entries() const { return m_large_factor_entries; }
-  void set_large_factor_entries(double entries) { m_large_factor_entries = entries; }
+  /// With CHOLMOD and fewer factorisations: the factor entries from which METIS is tried beside
+  /// AMD (Cholmod_supernodal_llt::Ordering::amd_or_metis).
+  void set_large_factor_entries(double entries)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    m_chol.set_large_factor_entries(entries);
+#else
+    (void)entries;
+#endif
+  }
   /// The fill-reducing ordering of the last analyze(): "amd", "metis", or "" (Eigen's
   /// SimplicialLDLT, which orders by AMD, or a user's solver).
   const char* ordering() const { return m_ordering; }
@@ -214,22 +217,11 @@ public:
     if(m_cholmod) {
       using Ordering = Cholmod_supernodal_llt::Ordering;
       const bool automatic = planned_factorizations >= automatic_ordering_min_factorizations;
-      m_chol.set_ordering(automatic ? Ordering::automatic : Ordering::amd);
+      m_chol.set_ordering(automatic ? Ordering::automatic : Ordering::amd_or_metis);
       m_chol.analyzePattern(A);
       if(m_chol.info() != Eigen::Success && automatic) {  // METIS failed (or is missing): AMD alone
         m_chol.set_ordering(Ordering::amd);
         m_chol.analyzePattern(A);
-      }
-      const cholmod_common& common = m_chol.cholmod();
-      if(m_chol.info() == Eigen::Success && !automatic && common.lnz >= m_large_factor_entries &&
-         common.fl >= metis_min_flops_per_entry * common.lnz) {
-        const double amd_entries = common.lnz;
-        m_chol.set_ordering(Ordering::metis);
-        m_chol.analyzePattern(A);
-        if(m_chol.info() != Eigen::Success || !(common.lnz < amd_entries)) {  // missing, or no better
-          m_chol.set_ordering(Ordering::amd);
-          m_chol.analyzePattern(A);
-        }
       }
       if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
       m_ordering = m_chol.factor()->ordering == CHOLMOD_METIS ? "metis" : "amd";
@@ -318,8 +310,6 @@ private:
   External m_external;
   std::string m_failure;
   bool m_cholmod = false;
-  // 256 MiB of values: the factor is then most of a smoothing call's memory.
-  double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
   const char* m_ordering = "";
   Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> m_ldlt;
 #ifdef LAPMESH_HAS_CHOLMOD
