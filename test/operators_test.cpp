@@ -830,7 +830,7 @@ TEST(Operators, PencilsMoveWithoutCopyingTheirStorage)
 #ifdef __linux__
 TEST(Operators, LargeWorkingArraysLieInMappingsOfTheirOwnInWholeHugePages)
 {
-  using lapmesh::internal::Large_array;
+  using lapmesh::internal::Working_array;
   ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
   // The mapping that holds `address`, from /proc/self/smaps: its bounds and its VmFlags line.
   struct Mapping
@@ -859,7 +859,7 @@ TEST(Operators, LargeWorkingArraysLieInMappingsOfTheirOwnInWholeHugePages)
   constexpr std::uintptr_t huge = std::uintptr_t(1) << 21;
 
   // Grown by push_back, the array moves from operator new to mappings of its own and keeps its values.
-  Large_array<int> grown;
+  Working_array<int> grown;
   for(int i = 0; i < (3 << 20); ++i) grown.push_back(i);
   for(int i = 0; i < (3 << 20); ++i)
     if(grown[std::size_t(i)] != i) FAIL() << "value " << i << " lost in a reallocation";
@@ -877,30 +877,84 @@ TEST(Operators, LargeWorkingArraysLieInMappingsOfTheirOwnInWholeHugePages)
   }
 
   // Below the threshold: operator new, with no advice.
-  Large_array<int> small(std::size_t(1) << 16);
+  Working_array<int> small(std::size_t(1) << 16);
   std::iota(small.begin(), small.end(), 0);
   EXPECT_LT(sizeof(int) * small.capacity(), lapmesh::internal::huge_page_mapping_min_bytes);
   EXPECT_EQ(small.back(), (1 << 16) - 1);
   EXPECT_EQ(mapping_of(small.data()).flags.find(" hg"), std::string::npos);
 
-  // Freed: the mapping is gone (unless another one has taken the address since).
-  grown = Large_array<int>();
+  // Freed with the cache off: the mapping is gone (unless another one has taken the address since).
+  const std::size_t limit = lapmesh::working_memory_cache_limit();
+  lapmesh::set_working_memory_cache_limit(0);
+  grown = Working_array<int>();
+  lapmesh::set_working_memory_cache_limit(limit);
   const Mapping after = mapping_of(reinterpret_cast<const void*>(address));
   EXPECT_TRUE(after.end == 0 || after.flags.find(" hg") == std::string::npos ||
               after.begin != m.begin || after.end != m.end);
+}
 
-  // A working array stays with operator new below glibc's largest mmap threshold and gets a
-  // mapping of its own on whole huge pages above it.
+TEST(Operators, FreedWorkingArraysAreKeptForTheNextCallWithinTheLimitAndNeverBesideANewMapping)
+{
   using lapmesh::internal::Working_array;
-  const std::size_t below = lapmesh::internal::huge_page_advice_min_bytes / sizeof(int) - 1024;
-  Working_array<int> in_heap(below);
-  in_heap.back() = 1;
-  EXPECT_EQ(mapping_of(in_heap.data()).flags.find(" hg"), std::string::npos);
-  Working_array<int> apart(below + 2048);
-  apart.back() = 1;
-  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(apart.data()) % huge, 0u);
-  if(std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled").good()) {
-    EXPECT_NE(mapping_of(apart.data()).flags.find(" hg"), std::string::npos);
-  }
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  const std::size_t limit = lapmesh::working_memory_cache_limit();
+  ASSERT_GE(limit, std::size_t(64) << 20) << "the default limit holds the arrays of a large mesh";
+  lapmesh::release_working_memory();
+  ASSERT_EQ(lapmesh::cached_working_memory(), 0u);
+  constexpr std::size_t huge = std::size_t(1) << 21;
+  const std::size_t count = (std::size_t(6) << 20) / sizeof(double);  // 6 MiB: three huge pages
+
+  // A freed array's mapping is cached and serves the next array of that size: same address,
+  // values still there (nothing is zeroed), the cache empty again.
+  auto* first = new Working_array<double>(count);
+  std::fill(first->begin(), first->end(), 2.5);
+  const double* address = first->data();
+  delete first;
+  EXPECT_EQ(lapmesh::cached_working_memory(), 3 * huge);
+  Working_array<double> again(count);
+  EXPECT_EQ(again.data(), address);
+  EXPECT_EQ(again[count / 2], 2.5);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+
+  // An array takes the smallest cached mapping that holds it, and a larger one loses its tail.
+  const std::size_t mib = (std::size_t(1) << 20) / sizeof(double);
+  Working_array<double> a(5 * mib), b(12 * mib);  // 3 and 6 huge pages
+  const double *a_address = a.data(), *b_address = b.data();
+  Working_array<double>().swap(a);
+  Working_array<double>().swap(b);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 9 * huge);
+  Working_array<double> c(9 * mib / 2);  // 3 huge pages: a's mapping
+  EXPECT_EQ(c.data(), a_address);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 6 * huge);
+  Working_array<double> d(9 * mib / 2);  // b's mapping, its last 3 huge pages unmapped
+  EXPECT_EQ(d.data(), b_address);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  // One that no cached mapping holds: the cache is emptied before the new mapping is made.
+  Working_array<double>().swap(c);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 3 * huge);
+  Working_array<double> e(18 * mib);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  Working_array<double>().swap(d);
+  Working_array<double>().swap(e);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 12 * huge);
+
+  // The limit: over it, the oldest mappings are handed back; a mapping larger than the limit is
+  // not kept; 0 keeps nothing; release_working_memory() hands back all and says how much.
+  lapmesh::set_working_memory_cache_limit(10 * huge);
+  EXPECT_EQ(lapmesh::working_memory_cache_limit(), 10 * huge);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 9 * huge);  // d's, the older, went first
+  { Working_array<double> big(24 * mib); }  // a new mapping (the cache emptied), too large to keep
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  { Working_array<double> kept(count); }
+  EXPECT_EQ(lapmesh::release_working_memory(), 3 * huge);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  lapmesh::set_working_memory_cache_limit(0);
+  { Working_array<double> off(count); }
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  lapmesh::set_working_memory_cache_limit(limit);
+
+  // Below 4 MiB an array comes from operator new and is never cached.
+  { Working_array<double> heap((std::size_t(2) << 20) / sizeof(double)); }
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
 }
 #endif

@@ -67,6 +67,23 @@ TEST(Spectral, SphereEigenvaluesAndMultiplicities)
   EXPECT_FALSE(b.splits_eigenspace(9));
 }
 
+#ifdef __linux__
+TEST(Spectral, TheFactorisationEmptiesTheCacheOfWorkingArraysFirst)
+{
+  // The factor is the run's largest block: no cached mapping may lie beside it. The sphere's
+  // arrays are far below 4 MiB: the run neither takes the cached mapping nor gives one back.
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(3, 1.0)));
+  const std::size_t bytes = std::size_t(8) << 20;
+  lapmesh::release_working_memory();
+  { lapmesh::internal::Working_array<double> freed(bytes / sizeof(double)); }
+  ASSERT_EQ(lapmesh::cached_working_memory(), bytes);
+  const auto basis = lapmesh::Spectral_basis::from_pencil(pencil, 5);
+  ASSERT_GT(basis.operations(), 0);  // the sparse path, with a factorisation
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+}
+#endif
+
 TEST(Spectral, MOrthonormalAndResidual)
 {
   const auto& b = sphere_basis();

@@ -1,12 +1,21 @@
-// lapmesh — the switch for transparent huge pages.
+// lapmesh — the switch for transparent huge pages, and the cache of working memory.
 //
 // Large meshes are processed in large arrays that the system maps afresh at every call; lapmesh
 // asks for transparent huge pages for them (internal/memory.h), and the command line restarts
 // itself with glibc's huge-page tunable for large inputs. `LAPMESH_HUGE_PAGES=0` in the
 // environment turns both off.
+//
+// lapmesh's own working arrays of 4 MiB or more (a mesh of about 100k vertices and up) are
+// mappings of their own. When a call frees them, lapmesh keeps them, up to a limit, for the next
+// call, which then finds its arrays warm instead of faulted in and zeroed by the kernel page by
+// page (internal/mapping_cache.h). A program that is done with large meshes, or keeps memory
+// tight, hands them back with release_working_memory() or lowers the limit.
 #ifndef LAPMESH_HUGE_PAGES_H
 #define LAPMESH_HUGE_PAGES_H
 
+#include <lapmesh/internal/mapping_cache.h>
+
+#include <cstddef>
 #include <cstdlib>
 #include <cstring>
 
@@ -25,6 +34,19 @@ inline bool huge_pages_enabled()
   static const bool enabled = !huge_pages_switched_off(std::getenv(huge_pages_variable));
   return enabled;
 }
+
+/// Bytes of freed working memory that lapmesh keeps mapped for its next calls.
+inline std::size_t cached_working_memory() { return internal::Mapping_cache::instance().cached_bytes(); }
+
+/// Hands the cached working memory back to the system; returns how many bytes that was.
+inline std::size_t release_working_memory() { return internal::Mapping_cache::instance().release(); }
+
+/// The most bytes of freed working memory that lapmesh keeps: 1 GiB, or an eighth of the
+/// physical memory where that is less, unless set.
+inline std::size_t working_memory_cache_limit() { return internal::Mapping_cache::instance().limit(); }
+
+/// Sets that limit; 0 keeps nothing. What the cache holds over the new limit is handed back.
+inline void set_working_memory_cache_limit(std::size_t bytes) { internal::Mapping_cache::instance().set_limit(bytes); }
 
 } // namespace lapmesh
 

@@ -30,9 +30,11 @@ from ._lapmesh import (
     ParameterError,
     SpectralBasis,
     add_noise,
+    cached_working_memory,
     curvatures,
     denoise_study,
     read_mesh,
+    release_working_memory,
     smooth,
     write_mesh,
 )
@@ -44,8 +46,8 @@ del _cls
 
 __all__ = [
     "Curvatures", "IoError", "LapmeshWarning", "Mesh", "MeshError", "NumericalError", "ParameterError",
-    "SpectralBasis", "add_noise", "curvatures", "denoise_study", "describe", "laplacian", "laplacian_arrays", "names",
-    "read_mesh", "smooth", "write_mesh",
+    "SpectralBasis", "add_noise", "cached_working_memory", "curvatures", "denoise_study", "describe", "laplacian",
+    "laplacian_arrays", "names", "read_mesh", "release_working_memory", "smooth", "write_mesh",
 ]
 
 

@@ -209,6 +209,7 @@ def process(path, out_dir, task, options):
     row = {"mesh": os.path.basename(path), "vertices": "", "faces": "", "status": "ok", "error": "", "seconds": "",
            "peak_mib": ""}
     restore_adaptive_malloc()
+    lapmesh.release_working_memory()  # the previous task's arrays would count in this task's peak
     start = time.perf_counter()
     _reset_peak()
     try:

@@ -362,6 +362,11 @@ PYBIND11_MODULE(_lapmesh, m)
   m.def("_set_steady_heap_thresholds", &lapmesh_ops::set_steady_heap_thresholds,
         "glibc's mmap threshold 32 MiB and trim threshold 64 MiB, whatever the environment says; whether glibc "
         "took them (lapmesh.batch.restore_adaptive_malloc)");
+  m.def("cached_working_memory", &lapmesh_ops::cached_working_memory,
+        "Bytes of freed working arrays (those of 4 MiB or more) that lapmesh keeps for its next call.");
+  m.def("release_working_memory", &lapmesh_ops::release_working_memory,
+        "Hands the working arrays that lapmesh keeps for its next call back to the system; returns how many bytes "
+        "that was.");
   py::exec(exception_classes, m.attr("__dict__"));
   py::register_exception_translator(&translate);
 

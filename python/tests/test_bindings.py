@@ -365,3 +365,30 @@ def test_import_keeps_the_heap_between_calls():
     # A threshold the environment sets is left as it is.
     assert mapped_apart("import", GLIBC_TUNABLES="glibc.malloc.mmap_threshold=131072") == 1
     assert mapped_apart("import", MALLOC_MMAP_THRESHOLD_="131072") == 1
+
+
+def _torus(nu, nv, R=1.0, r=0.4):
+    """A torus on an nu x nv grid: nu * nv vertices, 2 nu nv triangles."""
+    u, v = np.meshgrid(2 * np.pi * np.arange(nu) / nu, 2 * np.pi * np.arange(nv) / nv, indexing="ij")
+    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a, b = i * nv + j, (i + 1) % nu * nv + j
+    c, d = (i + 1) % nu * nv + (j + 1) % nv, i * nv + (j + 1) % nv
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return V, F
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="working arrays are mapped apart on Linux only")
+def test_working_memory_is_kept_for_the_next_call_and_handed_back_on_request():
+    V, F = _torus(500, 300)  # 150k vertices: working arrays of 4 MiB and more
+    lapmesh.release_working_memory()
+    assert lapmesh.cached_working_memory() == 0
+    first = lapmesh.curvatures(V, F)
+    kept = lapmesh.cached_working_memory()
+    assert kept >= 4 << 20
+    # The next call takes its arrays from the cache and gives them back: the same amount, the same result.
+    again = lapmesh.curvatures(V, F)
+    assert lapmesh.cached_working_memory() == kept
+    assert np.array_equal(again.mean, first.mean)
+    assert lapmesh.release_working_memory() == kept
+    assert lapmesh.cached_working_memory() == 0

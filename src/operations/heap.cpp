@@ -1,5 +1,7 @@
 #include "heap.h"
 
+#include <lapmesh/huge_pages.h>
+
 #include <cstdlib>
 #include <cstring>
 
@@ -25,5 +27,9 @@ bool keep_heap_between_calls()
   if(std::getenv("MALLOC_MMAP_THRESHOLD_") || std::getenv("MALLOC_TRIM_THRESHOLD_")) return false;
   return set_steady_heap_thresholds();
 }
+
+std::size_t cached_working_memory() { return lapmesh::cached_working_memory(); }
+
+std::size_t release_working_memory() { return lapmesh::release_working_memory(); }
 
 } // namespace lapmesh_ops

@@ -9,6 +9,8 @@
 #ifndef LAPMESH_OPERATIONS_HEAP_H
 #define LAPMESH_OPERATIONS_HEAP_H
 
+#include <cstddef>
+
 namespace lapmesh_ops {
 
 /// Blocks up to 32 MiB from the heap, and up to 64 MiB of free heap kept (glibc's mmap and trim
@@ -20,6 +22,11 @@ bool set_steady_heap_thresholds();
 /// (GLIBC_TUNABLES's mmap_threshold or trim_threshold, MALLOC_MMAP_THRESHOLD_,
 /// MALLOC_TRIM_THRESHOLD_). Returns whether it set them.
 bool keep_heap_between_calls();
+
+/// Bytes of freed working arrays that lapmesh keeps for its next call (lapmesh/huge_pages.h).
+std::size_t cached_working_memory();
+/// Hands them back to the system; returns how many bytes that was.
+std::size_t release_working_memory();
 
 } // namespace lapmesh_ops
 

@@ -7,11 +7,11 @@
 // at a time; on virtual machines each fault is expensive. Where the kernel gives transparent
 // huge pages on request (`/sys/kernel/mm/transparent_hugepage/enabled` set to `madvise`; with
 // `always` it does so anyway, with `never` not at all), a fresh block advised before its first
-// write faults in 2 MiB pages instead. The topology's arrays (Large_array) of at least 4 MiB get
-// mappings of their own, on 2 MiB boundaries and advised whole (allocate_large()); together they
-// would take the heap past its trim threshold. lapmesh's other working arrays (Working_array: the
-// extracted triangles, the corner geometry) stay in glibc's heap, where a call finds them warm,
-// up to glibc's largest mmap threshold, and get such mappings above it. Where a fault is a trip
+// write faults in 2 MiB pages instead. lapmesh's working arrays (Working_array: the topology, the
+// extracted triangles, the corner geometry) of at least 4 MiB get mappings of their own, on 2 MiB
+// boundaries and advised whole (allocate_large()): together they would take the heap past its
+// trim threshold. Freed, such a mapping is kept for the next call's arrays (mapping_cache.h),
+// which find it warm, as glibc's heap would have kept it below its trim threshold. Where a fault is a trip
 // to the hypervisor, a burst of 4 KiB faults also slows the next pass over other memory (the
 // caller's mesh), likely because its mappings fall out of the hypervisor's caches. The blocks of
 // Eigen's arrays come from glibc: only those of at least 32 MiB, which glibc maps apart, are
@@ -27,6 +27,7 @@
 #define LAPMESH_INTERNAL_MEMORY_H
 
 #include <lapmesh/huge_pages.h>
+#include <lapmesh/internal/mapping_cache.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -49,8 +50,7 @@
 namespace lapmesh {
 namespace internal {
 
-/// glibc's largest mmap threshold: smaller blocks are not advised, and a Working_array of
-/// fewer bytes stays in glibc's heap.
+/// glibc's largest mmap threshold: smaller blocks of glibc's are not advised.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
 /// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
@@ -84,11 +84,11 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 #endif
 }
 
-/// Blocks of at least this size that lapmesh allocates for itself (the topology's arrays) are
-/// mapped apart on 2 MiB boundaries, in huge pages: glibc would put those under its mmap
-/// threshold in its heap, which it trims at the end of the call, so that the next call faults
-/// them in again one 4 KiB page at a time; and it maps the others a few KiB off a 2 MiB
-/// boundary, leaving their first and last 2 MiB in small pages.
+/// Blocks of at least this size that lapmesh allocates for itself (its working arrays) are
+/// mapped apart on 2 MiB boundaries, in huge pages, and cached when freed: glibc would put those
+/// under its mmap threshold in its heap, which it trims at the end of the call, so that the next
+/// call faults them in again one 4 KiB page at a time; and it maps the others a few KiB off a
+/// 2 MiB boundary, leaving their first and last 2 MiB in small pages.
 constexpr std::size_t huge_page_mapping_min_bytes = std::size_t(4) << 20;
 
 /// Whether allocate_large() maps a block of `bytes` apart from `min_bytes` on (a function of
@@ -104,14 +104,16 @@ inline bool maps_apart(std::size_t bytes, std::size_t min_bytes = huge_page_mapp
 #endif
 }
 
-/// `bytes` of fresh memory: a block of whole 2 MiB pages advised huge when
-/// maps_apart(bytes, min_bytes), else from operator new. Throws std::bad_alloc.
+/// `bytes` of memory, not initialised: when maps_apart(bytes, min_bytes), a block of whole 2 MiB
+/// pages advised huge (a cached one that fits, else a fresh one), else from operator new. Throws
+/// std::bad_alloc.
 inline void* allocate_large(std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes, min_bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
+    if(void* cached = Mapping_cache::instance().take(size)) return cached;
     // Map one huge page more and unmap what lies outside the first aligned block.
     void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if(mapped == MAP_FAILED) throw std::bad_alloc();
@@ -126,12 +128,13 @@ inline void* allocate_large(std::size_t bytes, std::size_t min_bytes = huge_page
   return ::operator new(bytes);
 }
 
-/// Frees a block of allocate_large(bytes, min_bytes).
+/// Frees a block of allocate_large(bytes, min_bytes); a mapping goes to the cache where it fits.
 inline void deallocate_large(void* p, std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes, min_bytes)) {
-    munmap(p, round_up_to_huge_pages(bytes));
+    const std::size_t size = round_up_to_huge_pages(bytes);
+    if(!Mapping_cache::instance().keep(p, size)) munmap(p, size);
     return;
   }
 #endif
@@ -173,18 +176,11 @@ struct Large_array_allocator : std::allocator<T>
   }
 };
 
-/// An array of a topology: a std::vector that resize() does not zero, out of glibc's heap from
-/// 4 MiB on. A topology's arrays are many and large together: in the heap they would take it
-/// past its trim threshold.
+/// A working array of a call (the topology's arrays, the extracted triangles and vertices, the
+/// corner geometry): a std::vector that resize() does not zero, in a cached mapping of its own
+/// from 4 MiB on, in glibc's heap below.
 template <typename T>
-using Large_array = std::vector<T, Large_array_allocator<T>>;
-
-/// A working array of a call that is not the topology's (the extracted triangles and vertices,
-/// the corner geometry): in glibc's heap, which keeps it warm for the next call, below glibc's
-/// largest mmap threshold; above it, in a mapping of its own on whole huge pages rather than in
-/// glibc's, whose first and last 2 MiB are small pages.
-template <typename T>
-using Working_array = std::vector<T, Large_array_allocator<T, huge_page_advice_min_bytes>>;
+using Working_array = std::vector<T, Large_array_allocator<T>>;
 
 /// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.
 template <typename Derived>

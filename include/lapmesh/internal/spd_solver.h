@@ -16,6 +16,7 @@
 
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/cholmod.h>
+#include <lapmesh/internal/mapping_cache.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/row_sort.h>
@@ -212,6 +213,9 @@ public:
   /// place. Otherwise the result is empty and the analysis is complete.
   std::vector<Index> analyze(const SpMat& A, int planned_factorizations)
   {
+    // The analysis and the factor take much memory that the cache of working arrays does not
+    // serve: emptied first, the cache does not add to the call's peak.
+    release_cached_mappings();
     if(m_external.factor) return {};  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
@@ -249,6 +253,7 @@ public:
   bool factorize(const SpMat& A)
   {
     m_failure.clear();
+    release_cached_mappings();  // as in analyze()
     if(m_external.factor) {
       const bool ok = m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
       if(!ok) m_failure = "the user's sparse_linear_solver failed";

@@ -115,19 +115,19 @@ struct Mesh_topology
   Working_array<Index> triangles;
 
   /// The corners incident to vertex v are vertex_corners[corner_begin[v] .. corner_begin[v+1]).
-  Large_array<Index> corner_begin;
-  Large_array<Index> vertex_corners;
+  Working_array<Index> corner_begin;
+  Working_array<Index> vertex_corners;
 
   /// Symmetric sparsity pattern, diagonal included, sorted within each row. Because it is
   /// symmetric, it is at once the CSR and the CSC (Eigen column-major) structure.
-  Large_array<Index> outer;  // num_vertices + 1
-  Large_array<Index> inner;  // number of non-zeros
-  Large_array<Index> diagonal_slot;
+  Working_array<Index> outer;  // num_vertices + 1
+  Working_array<Index> inner;  // number of non-zeros
+  Working_array<Index> diagonal_slot;
 
   /// For the slot (i, j), j != i: the corner opposite the halfedge i->j and the corner
   /// opposite the halfedge j->i (-1 where that side has no face, i.e. on the boundary).
   /// The diagonal slots hold {-1, -1}.
-  Large_array<std::array<Index, 2>> slot_corners;
+  Working_array<std::array<Index, 2>> slot_corners;
 
   std::vector<char> on_boundary;
 
@@ -183,8 +183,8 @@ constexpr Index min_ranges_sorted_into = 4;
 /// vertex_corners[corner_begin[v] .. corner_begin[v + 1]); a vertex in no face has none.
 struct Corner_incidence
 {
-  Large_array<Index> corner_begin;
-  Large_array<Index> vertex_corners;
+  Working_array<Index> corner_begin;
+  Working_array<Index> vertex_corners;
 
   bool empty() const { return corner_begin.empty(); }
   /// The first vertex with no corner, or -1.
@@ -261,7 +261,7 @@ inline Corner_incidence sort_corners_by_vertex(Index n, const Working_array<Inde
     range_first[r] = Index(std::min<std::uint64_t>(std::uint64_t(n), ((std::uint64_t(r) << 32) + scale - 1) / scale));
   // Range r's corners are vertex_corners[range_start[r] .. range_start[r + 1]).
   std::vector<std::size_t> range_start(width + 1, 0);
-  Large_array<std::array<Index, 2>> pairs;  // (vertex, corner), sorted into ranges at range_start
+  Working_array<std::array<Index, 2>> pairs;  // (vertex, corner), sorted into ranges at range_start
   if(sorted_into_ranges) {
     // As many chunks of faces as ranges; offsets[k * width + r]: where chunk k's pairs of range r
     // go. A face whose corners are in one range, as most are, moves its range's counter once.
@@ -381,8 +381,8 @@ struct Pattern_rows
   std::array<Index, 2>* slice_slot_corners = nullptr;
   std::size_t slice_capacity = 0;
   std::size_t in_slice = 0;  // the first in_slice entries are in the slice, the others in own_*
-  Large_array<Index> own_inner;
-  Large_array<std::array<Index, 2>> own_slot_corners;
+  Working_array<Index> own_inner;
+  Working_array<std::array<Index, 2>> own_slot_corners;
   std::size_t size = 0;
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
   Index num_edges = 0;
@@ -448,8 +448,8 @@ struct Pattern_rows
   /// Frees the part's own arrays once the rows are joined.
   void release()
   {
-    Large_array<Index>().swap(own_inner);
-    Large_array<std::array<Index, 2>>().swap(own_slot_corners);
+    Working_array<Index>().swap(own_inner);
+    Working_array<std::array<Index, 2>>().swap(own_slot_corners);
   }
 };
 
@@ -649,8 +649,8 @@ inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> tri
     t.slot_corners = std::move(parts[0].own_slot_corners);
     return t;
   }
-  Large_array<Index> inner(std::size_t(slot_base.back()));
-  Large_array<std::array<Index, 2>> slot_corners(std::size_t(slot_base.back()));
+  Working_array<Index> inner(std::size_t(slot_base.back()));
+  Working_array<std::array<Index, 2>> slot_corners(std::size_t(slot_base.back()));
   for_each_part(n, rows_per_part, true, [&](Index p, Index, Index) {
     Pattern_rows& part = parts[std::size_t(p)];
     part.copy_to(inner.data() + slot_base[std::size_t(p)], slot_corners.data() + slot_base[std::size_t(p)]);
