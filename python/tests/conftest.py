@@ -1,6 +1,6 @@
 """Fixtures of the lapmesh Python tests: the CLI binary and CGAL's meshes (from the
-environment ctest sets), and a rule that a skipped test fails the run: a missing
-dependency must not pass for a success."""
+environment ctest sets), a rule that a skipped test fails the run (a missing
+dependency must not pass for a success), and a generated torus (`from conftest import torus`)."""
 import os
 import subprocess
 
@@ -51,3 +51,17 @@ def pytest_sessionfinish(session, exitstatus):
     if reporter is not None and reporter.stats.get("skipped") and session.exitstatus == 0:
         reporter.write_line("lapmesh: skipped tests count as failures (a dependency is missing)", red=True)
         session.exitstatus = 1
+
+
+def torus(rings, segments):
+    """A closed torus of rings x segments vertices."""
+    import numpy as np
+
+    u, v = np.meshgrid(np.arange(rings) * (2 * np.pi / rings), np.arange(segments) * (2 * np.pi / segments),
+                       indexing="ij")
+    V = np.stack([(2 + np.cos(v)) * np.cos(u), (2 + np.cos(v)) * np.sin(u), np.sin(v)], axis=-1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(rings), np.arange(segments), indexing="ij")
+    a, b = i * segments + j, ((i + 1) % rings) * segments + j
+    c, d = ((i + 1) % rings) * segments + (j + 1) % segments, i * segments + (j + 1) % segments
+    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return V, F

@@ -13,6 +13,8 @@ import pytest
 
 from lapmesh import batch
 
+from conftest import torus
+
 
 def off_vertices(path):
     with open(path) as f:
@@ -286,18 +288,6 @@ def test_spectrum_npz_is_the_basis(corpus, tmp_path):
     assert os.path.exists(batch.results(str(tmp_path), stem, "spectrum")[1])
 
 
-def torus(rings, segments):
-    """A closed torus of rings x segments vertices."""
-    import numpy as np
-
-    u, v = np.meshgrid(np.arange(rings) * (2 * np.pi / rings), np.arange(segments) * (2 * np.pi / segments),
-                       indexing="ij")
-    V = np.stack([(2 + np.cos(v)) * np.cos(u), (2 + np.cos(v)) * np.sin(u), np.sin(v)], axis=-1).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(rings), np.arange(segments), indexing="ij")
-    a, b = i * segments + j, ((i + 1) % rings) * segments + j
-    c, d = ((i + 1) % rings) * segments + (j + 1) % segments, i * segments + (j + 1) % segments
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
-    return V, F
 
 
 def test_worker_memory_limit(corpus, tmp_path):

@@ -12,6 +12,8 @@ import pytest
 
 import lapmesh
 
+from conftest import torus
+
 
 def read_off(path):
     """A minimal OFF reader (the CLI's output), independent of the library."""
@@ -367,20 +369,9 @@ def test_import_keeps_the_heap_between_calls():
     assert mapped_apart("import", MALLOC_MMAP_THRESHOLD_="131072") == 1
 
 
-def _torus(nu, nv, R=1.0, r=0.4):
-    """A torus on an nu x nv grid: nu * nv vertices, 2 nu nv triangles."""
-    u, v = np.meshgrid(2 * np.pi * np.arange(nu) / nu, 2 * np.pi * np.arange(nv) / nv, indexing="ij")
-    V = np.stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u), r * np.sin(v)], -1).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
-    a, b = i * nv + j, (i + 1) % nu * nv + j
-    c, d = (i + 1) % nu * nv + (j + 1) % nv, i * nv + (j + 1) % nv
-    F = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
-    return V, F
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="working arrays are mapped apart on Linux only")
 def test_working_memory_is_kept_for_the_next_call_and_handed_back_on_request():
-    V, F = _torus(500, 300)  # 150k vertices: working arrays of 4 MiB and more
+    V, F = torus(500, 300)  # 150k vertices: working arrays of 4 MiB and more
     lapmesh.release_working_memory()
     assert lapmesh.cached_working_memory() == 0
     first = lapmesh.curvatures(V, F)

@@ -1,4 +1,5 @@
-// The one process-wide setting of the front ends: glibc's heap kept between calls.
+// The process-wide memory settings of the front ends: glibc's heap kept between calls, and the
+// working arrays that lapmesh keeps for its next call (lapmesh/huge_pages.h).
 //
 // Until a block of 32 MiB has been freed, glibc hands the top of its heap back to the kernel at
 // the end of every call that freed more than a few times its largest block, and the next call

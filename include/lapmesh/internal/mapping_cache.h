@@ -13,7 +13,7 @@
 // the cache off), at most max_entries mappings, and none beside a new mapping: a request that
 // no cached mapping fits unmaps them all first, so that lapmesh's own arrays never need more
 // memory than they would without the cache. A computation about to allocate much memory of
-// another kind (a sparse factorisation) empties it as well (release_cached_mappings()).
+// another kind (a sparse factorisation) empties it as well (release_working_memory()).
 #ifndef LAPMESH_INTERNAL_MAPPING_CACHE_H
 #define LAPMESH_INTERNAL_MAPPING_CACHE_H
 
@@ -154,9 +154,6 @@ private:
   Entry m_entries[max_entries] = {};
   std::size_t m_count = 0, m_total = 0, m_limit;
 };
-
-/// Empties the cache before a large allocation that does not come from it.
-inline void release_cached_mappings() noexcept { Mapping_cache::instance().release(); }
 
 } // namespace internal
 } // namespace lapmesh

@@ -91,26 +91,25 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 /// 2 MiB boundary, leaving their first and last 2 MiB in small pages.
 constexpr std::size_t huge_page_mapping_min_bytes = std::size_t(4) << 20;
 
-/// Whether allocate_large() maps a block of `bytes` apart from `min_bytes` on (a function of
-/// the sizes alone, so that deallocate_large() takes the same branch).
-inline bool maps_apart(std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes) noexcept
+/// Whether allocate_large() maps a block of `bytes` apart (a function of the size alone, so that
+/// deallocate_large() takes the same branch).
+inline bool maps_apart(std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  return bytes >= min_bytes && huge_pages_enabled();
+  return bytes >= huge_page_mapping_min_bytes && huge_pages_enabled();
 #else
   (void)bytes;
-  (void)min_bytes;
   return false;
 #endif
 }
 
-/// `bytes` of memory, not initialised: when maps_apart(bytes, min_bytes), a block of whole 2 MiB
+/// `bytes` of memory, not initialised: when maps_apart(bytes), a block of whole 2 MiB
 /// pages advised huge (a cached one that fits, else a fresh one), else from operator new. Throws
 /// std::bad_alloc.
-inline void* allocate_large(std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes)
+inline void* allocate_large(std::size_t bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes, min_bytes)) {
+  if(maps_apart(bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
     if(void* cached = Mapping_cache::instance().take(size)) return cached;
@@ -128,11 +127,11 @@ inline void* allocate_large(std::size_t bytes, std::size_t min_bytes = huge_page
   return ::operator new(bytes);
 }
 
-/// Frees a block of allocate_large(bytes, min_bytes); a mapping goes to the cache where it fits.
-inline void deallocate_large(void* p, std::size_t bytes, std::size_t min_bytes = huge_page_mapping_min_bytes) noexcept
+/// Frees a block of allocate_large(bytes); a mapping goes to the cache where it fits.
+inline void deallocate_large(void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes, min_bytes)) {
+  if(maps_apart(bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(!Mapping_cache::instance().keep(p, size)) munmap(p, size);
     return;
@@ -142,28 +141,29 @@ inline void deallocate_large(void* p, std::size_t bytes, std::size_t min_bytes =
 }
 
 /// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose blocks
-/// of at least MinBytesApart are mappings of their own in huge pages (allocate_large()).
+/// of at least huge_page_mapping_min_bytes are mappings of their own in huge pages
+/// (allocate_large()).
 /// lapmesh's own large arrays are written in full right after they are sized, in parallel under
 /// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page faults
 /// of every fresh page on one thread.
-template <typename T, std::size_t MinBytesApart = huge_page_mapping_min_bytes>
-struct Large_array_allocator : std::allocator<T>
+template <typename T>
+struct Working_array_allocator : std::allocator<T>
 {
   template <typename U>
   struct rebind
   {
-    using other = Large_array_allocator<U, MinBytesApart>;
+    using other = Working_array_allocator<U>;
   };
-  Large_array_allocator() = default;
+  Working_array_allocator() = default;
   template <typename U>
-  Large_array_allocator(const Large_array_allocator<U, MinBytesApart>&) noexcept
+  Working_array_allocator(const Working_array_allocator<U>&) noexcept
   {}
   T* allocate(std::size_t count)
   {
     if(count > std::size_t(-1) / sizeof(T)) throw std::bad_alloc();
-    return static_cast<T*>(allocate_large(count * sizeof(T), MinBytesApart));
+    return static_cast<T*>(allocate_large(count * sizeof(T)));
   }
-  void deallocate(T* p, std::size_t count) noexcept { deallocate_large(p, count * sizeof(T), MinBytesApart); }
+  void deallocate(T* p, std::size_t count) noexcept { deallocate_large(p, count * sizeof(T)); }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value)
   {
@@ -180,7 +180,7 @@ struct Large_array_allocator : std::allocator<T>
 /// corner geometry): a std::vector that resize() does not zero, in a cached mapping of its own
 /// from 4 MiB on, in glibc's heap below.
 template <typename T>
-using Working_array = std::vector<T, Large_array_allocator<T>>;
+using Working_array = std::vector<T, Working_array_allocator<T>>;
 
 /// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.
 template <typename Derived>

@@ -15,8 +15,8 @@
 #define LAPMESH_INTERNAL_SPD_SOLVER_H
 
 #include <lapmesh/errors.h>
+#include <lapmesh/huge_pages.h>
 #include <lapmesh/internal/cholmod.h>
-#include <lapmesh/internal/mapping_cache.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/row_sort.h>
@@ -215,7 +215,7 @@ public:
   {
     // The analysis and the factor take much memory that the cache of working arrays does not
     // serve: emptied first, the cache does not add to the call's peak.
-    release_cached_mappings();
+    release_working_memory();
     if(m_external.factor) return {};  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
@@ -253,7 +253,7 @@ public:
   bool factorize(const SpMat& A)
   {
     m_failure.clear();
-    release_cached_mappings();  // as in analyze()
+    release_working_memory();  // as in analyze()
     if(m_external.factor) {
       const bool ok = m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
       if(!ok) m_failure = "the user's sparse_linear_solver failed";
