@@ -113,8 +113,8 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   compute_corner_geometry(t, P, Corner_request{area, with_gaussian, true}, parallel, g);
 
   Vertex_curvatures out;
-  out.area = gather_corner_sums(t, g.corner_area, parallel);
-  out.normal = gather_vertex_normals(t, g, parallel);
+  out.area = std::move(g.vertex_area);
+  out.normal = vertex_normals(std::move(g.face_normal_sum), parallel);
   if(laplacian == Laplacian::cotangent || with_gaussian) require_positive_vertex_areas(out.area, area);
 
   if(laplacian == Laplacian::cotangent) {
@@ -133,7 +133,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   });
   if(!with_gaussian) return out;
 
-  set_gaussian_and_principal(t, gather_corner_sums(t, g.angle, parallel), parallel, out);
+  set_gaussian_and_principal(t, g.angle_sum, parallel, out);
   return out;
 }
 
@@ -146,12 +146,11 @@ inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, c
     return compute_intrinsic_curvatures(t, P, area, true, parallel, mollification).gaussian;
   require_manifold(t, to_string(laplacian));
   Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, true, false}, parallel, g);
-  const Eigen::VectorXd areas = gather_corner_sums(t, g.corner_area, parallel);
-  require_positive_vertex_areas(areas, area);
-  const Eigen::VectorXd angle_sum = gather_corner_sums(t, g.angle, parallel);
+  compute_corner_geometry(t, P, Corner_request{area, true, false, false}, parallel, g);
+  require_positive_vertex_areas(g.vertex_area, area);
   Eigen::VectorXd K(t.num_vertices);
-  for_each_index(t.num_vertices, parallel, [&](Index v) { K[v] = gaussian_curvature_at(t, v, angle_sum[v], areas[v]); });
+  for_each_index(t.num_vertices, parallel,
+                 [&](Index v) { K[v] = gaussian_curvature_at(t, v, g.angle_sum[v], g.vertex_area[v]); });
   return K;
 }
 

@@ -93,8 +93,8 @@ inline double add_noise(const Mesh_topology& t, Positions& P, double level, Nois
     return sigma;
   }
   Corner_geometry geo;
-  compute_corner_geometry(t, P, Corner_request{Vertex_area::barycentric, false, true}, false, geo);
-  const Positions N = gather_vertex_normals(t, geo, false);
+  compute_corner_geometry(t, P, Corner_request{Vertex_area::barycentric, false, true, false}, false, geo);
+  const Positions N = vertex_normals(std::move(geo.face_normal_sum), false);
   for(Index i = 0; i < t.num_vertices; ++i) P.row(i) += sigma * g() * N.row(i);
   return sigma;
 }

@@ -1,9 +1,10 @@
 // Internal: per-corner geometry of a triangle mesh and the per-vertex gathers built on it.
 //
-// One streaming pass over the faces computes, for every corner, the cotangent of its angle
-// and its share of the vertex area (and, on request, the angle itself and the face normal).
-// This is the single canonical place where cotangent weights and vertex areas are defined
-// (doc/conventions.md); every operator and curvature of lapmesh is a gather over these arrays.
+// One streaming pass over the faces computes, for every corner, the cotangent of its angle and
+// its share of the vertex area, summed at its vertex (and, on request, the angle and the face
+// normal, summed likewise). This is the single canonical place where cotangent weights and
+// vertex areas are defined (doc/conventions.md); every operator and curvature of lapmesh is
+// built on these.
 #ifndef LAPMESH_INTERNAL_GEOMETRY_H
 #define LAPMESH_INTERNAL_GEOMETRY_H
 
@@ -22,6 +23,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 
@@ -31,15 +33,16 @@ namespace internal {
 /// n x 3 vertex positions; row-major so that a vertex's coordinates are contiguous.
 using Positions = Vertex_vectors;
 
+/// The corner cotangents of a mesh and the per-vertex sums of its corners' geometry.
 struct Corner_geometry
 {
-  // Working arrays: resize() leaves them uninitialised, which saves a zeroing pass that the
-  // face pass overwrites anyway; large ones get whole huge pages (internal/memory.h).
-  Working_array<double> cot;          ///< cot of the corner angle, 3 per face
-  Working_array<double> corner_area;  ///< the corner's share of its vertex's area A_i
-  Working_array<double> angle;        ///< the corner angle (only with want_angles)
-  Working_array<double> face_normal;  ///< 3 per face: cross product = 2 * area * unit normal
-                                      ///< (only with want_face_normals)
+  /// cot of the corner angle, 3 per face (want_cotangents). A working array: resize() leaves it
+  /// uninitialised, which saves a zeroing pass that the face pass overwrites anyway.
+  Working_array<double> cot;
+  Eigen::VectorXd vertex_area;  ///< A_i, the sum of the shares of i's corners
+  Eigen::VectorXd angle_sum;    ///< the sum of i's corner angles (want_angles)
+  Positions face_normal_sum;    ///< the sum of the cross products (2 * area * unit normal) of
+                                ///< i's faces (want_face_normals)
 };
 
 struct Corner_request
@@ -47,6 +50,82 @@ struct Corner_request
   Vertex_area area = Vertex_area::barycentric;
   bool want_angles = false;
   bool want_face_normals = false;
+  bool want_cotangents = true;
+};
+
+/// Per-vertex sums of values that a pass over the faces produces per corner. Serially
+/// (`Scatter`) the pass adds each value to its vertex as it goes, so no per-corner array is
+/// held; in parallel the values are kept per corner and each vertex gathers its own (no two
+/// threads write one sum). Both add a vertex's values in ascending corner order, the order of
+/// its corner list (sort_corners_by_vertex()), so the sums are the same, bitwise. `PerFace`: one
+/// value per face, added to each of its three vertices.
+template <int Width, bool PerFace = false>
+class Corner_value_sums
+{
+public:
+  using Sums = std::conditional_t<Width == 1, Eigen::VectorXd, Positions>;
+
+  /// `wanted` false: nothing is allocated and add() must not be called.
+  Corner_value_sums(const Mesh_topology& t, bool scatter, bool wanted = true)
+    : m_tri(t.triangles.data()), m_scatter(scatter)
+  {
+    if(!wanted) return;
+    if(scatter) {
+      m_sums.resize(t.num_vertices, Width);
+      advise_huge_pages(m_sums);
+      m_sums.setZero();
+      m_out = m_sums.data();
+    } else {
+      m_values.resize(std::size_t(Width) * (PerFace ? 1 : 3) * std::size_t(t.num_faces));
+      m_out = m_values.data();
+    }
+  }
+  /// Fetches the sums of face f's vertices ahead of add() (Scatter).
+  void prefetch_face(Index f) const
+  {
+    for(Index a = 0; a < 3; ++a) prefetch(m_out + std::size_t(Width) * std::size_t(m_tri[3 * f + a]));
+  }
+  /// Adds the values of face f's corners (Width doubles each, side by side), or with
+  /// PerFace the face's value to each corner.
+  template <bool Scatter>
+  void add_face(Index f, const double* values)
+  {
+    if constexpr(Scatter) {
+      for(Index a = 0; a < 3; ++a) {
+        double* sum = m_out + std::size_t(Width) * std::size_t(m_tri[3 * f + a]);
+        const double* value = values + (PerFace ? 0 : Width * a);
+        for(int k = 0; k < Width; ++k) sum[k] += value[k];
+      }
+    } else {
+      constexpr std::size_t count = std::size_t(Width) * (PerFace ? 1 : 3);
+      std::copy(values, values + count, m_out + count * std::size_t(f));
+    }
+  }
+  /// The sums (once, after the pass); the per-corner values, if any, are released.
+  Sums finish(const Mesh_topology& t, bool parallel)
+  {
+    if(m_scatter) return std::move(m_sums);
+    Sums out(t.num_vertices, Width);
+    advise_huge_pages(out);
+    for_each_index(t.num_vertices, parallel, [&](Index v) {
+      double s[Width] = {};
+      for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
+        const Index c = t.vertex_corners[k];
+        const double* value = &m_values[std::size_t(Width) * std::size_t(PerFace ? c / 3 : c)];
+        for(int j = 0; j < Width; ++j) s[j] += value[j];
+      }
+      std::copy(s, s + Width, out.data() + std::size_t(Width) * std::size_t(v));
+    });
+    Working_array<double>().swap(m_values);
+    return out;
+  }
+
+private:
+  const Index* m_tri;
+  bool m_scatter;
+  double* m_out = nullptr;
+  Sums m_sums;
+  Working_array<double> m_values;
 };
 
 /// The three corners' shares of a face's area for the lumped mass of kind `area`, from the
@@ -89,93 +168,91 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
                                     Corner_geometry& g)
 {
   const Index m = t.num_faces;
-  g.cot.resize(3 * std::size_t(m));
-  g.corner_area.resize(3 * std::size_t(m));
-  if(request.want_angles) g.angle.resize(3 * std::size_t(m));
-  if(request.want_face_normals) g.face_normal.resize(3 * std::size_t(m));
+  if(request.want_cotangents) g.cot.resize(3 * std::size_t(m));
+  const bool scatter = !parallel;
+  Corner_value_sums<1> area_sums(t, scatter), angle_sums(t, scatter, request.want_angles);
+  Corner_value_sums<3, true> normal_sums(t, scatter, request.want_face_normals);
   // How many faces ahead the positions of a face's corners are prefetched.
   constexpr Index prefetch_distance = 16;
 
   First_index<Index> first_degenerate;
   const Index* tri = t.triangles.data();
 
-  for_each_index(m, parallel, [&](Index f) {
-    if(f + prefetch_distance < m)
-      for(Index a = 0; a < 3; ++a) prefetch(&P(tri[3 * (f + prefetch_distance) + a], 0));
-    const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]),
-                          p2 = P.row(tri[3 * f + 2]);
-    // e[a] is the edge opposite corner a.
-    const Eigen::Vector3d e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0;
-    const Eigen::Vector3d cross = e2.cross(-e1);
-    // Not cross.norm(): squaring the components overflows for edges beyond ~1e77 and
-    // underflows below ~1e-77, well inside the range of representable squared lengths.
-    const double dbl_area = cross_norm(cross.x(), cross.y(), cross.z());
-    const double l0 = e0.squaredNorm(), l1 = e1.squaredNorm(), l2 = e2.squaredNorm();
-    const double dot0 = -e2.dot(e1), dot1 = -e0.dot(e2), dot2 = -e1.dot(e0);
+  // The pass is compiled once per way of summing, so that neither branches per corner.
+  const auto pass = [&](auto scatter_constant) {
+    constexpr bool Scatter = decltype(scatter_constant)::value;
+    for_each_index(m, parallel, [&](Index f) {
+      if(f + prefetch_distance < m) {
+        for(Index a = 0; a < 3; ++a) prefetch(&P(tri[3 * (f + prefetch_distance) + a], 0));
+        if constexpr(Scatter) {
+          area_sums.prefetch_face(f + prefetch_distance);
+          if(request.want_angles) angle_sums.prefetch_face(f + prefetch_distance);
+          if(request.want_face_normals) normal_sums.prefetch_face(f + prefetch_distance);
+        }
+      }
+      const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]),
+                            p2 = P.row(tri[3 * f + 2]);
+      // e[a] is the edge opposite corner a.
+      const Eigen::Vector3d e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0;
+      const Eigen::Vector3d cross = e2.cross(-e1);
+      // Not cross.norm(): squaring the components overflows for edges beyond ~1e77 and
+      // underflows below ~1e-77, well inside the range of representable squared lengths.
+      const double dbl_area = cross_norm(cross.x(), cross.y(), cross.z());
+      const double l0 = e0.squaredNorm(), l1 = e1.squaredNorm(), l2 = e2.squaredNorm();
+      const double dot0 = -e2.dot(e1), dot1 = -e0.dot(e2), dot2 = -e1.dot(e0);
 
-    if(!face_in_range(std::max(l0, std::max(l1, l2)), dbl_area)) {
-      first_degenerate.record(f);
-      return;
-    }
-    const double inv = 1.0 / dbl_area;
-    const double c0 = dot0 * inv, c1 = dot1 * inv, c2 = dot2 * inv;
-    double* cot = &g.cot[3 * std::size_t(f)];
-    cot[0] = c0; cot[1] = c1; cot[2] = c2;
+      if(!face_in_range(std::max(l0, std::max(l1, l2)), dbl_area)) {
+        first_degenerate.record(f);
+        return;
+      }
+      const double inv = 1.0 / dbl_area;
+      const double cot[3] = {dot0 * inv, dot1 * inv, dot2 * inv};
+      if(request.want_cotangents) std::copy(cot, cot + 3, &g.cot[3 * std::size_t(f)]);
 
-    const double squared[3] = {l0, l1, l2};
-    lumped_corner_areas(request.area, 0.5 * dbl_area, cot, squared, &g.corner_area[3 * std::size_t(f)]);
-    if(request.want_angles) {
-      // The angle opposite the longest edge is pi minus the other two: one atan2 fewer,
-      // and the three angles of every face sum to pi, which makes Gauss–Bonnet exact.
-      double* ang = &g.angle[3 * std::size_t(f)];
-      const int largest = l0 >= l1 ? (l0 >= l2 ? 0 : 2) : (l1 >= l2 ? 1 : 2);
-      const double dots[3] = {dot0, dot1, dot2};
-      const int a1 = (largest + 1) % 3, a2 = (largest + 2) % 3;
-      ang[a1] = std::atan2(dbl_area, dots[a1]);
-      ang[a2] = std::atan2(dbl_area, dots[a2]);
-      ang[largest] = M_PI - ang[a1] - ang[a2];
-    }
-    if(request.want_face_normals) {
-      double* n = &g.face_normal[3 * std::size_t(f)];
-      n[0] = cross.x(); n[1] = cross.y(); n[2] = cross.z();
-    }
-  });
+      const double squared[3] = {l0, l1, l2};
+      double share[3];
+      lumped_corner_areas(request.area, 0.5 * dbl_area, cot, squared, share);
+      area_sums.template add_face<Scatter>(f, share);
+      if(request.want_angles) {
+        // The angle opposite the longest edge is pi minus the other two: one atan2 fewer,
+        // and the three angles of every face sum to pi, which makes Gauss–Bonnet exact.
+        double angle[3];
+        const int largest = l0 >= l1 ? (l0 >= l2 ? 0 : 2) : (l1 >= l2 ? 1 : 2);
+        const double dots[3] = {dot0, dot1, dot2};
+        const int a1 = (largest + 1) % 3, a2 = (largest + 2) % 3;
+        angle[a1] = std::atan2(dbl_area, dots[a1]);
+        angle[a2] = std::atan2(dbl_area, dots[a2]);
+        angle[largest] = M_PI - angle[a1] - angle[a2];
+        angle_sums.template add_face<Scatter>(f, angle);
+      }
+      if(request.want_face_normals) normal_sums.template add_face<Scatter>(f, cross.data());
+    });
+  };
+  if(scatter)
+    pass(std::true_type());
+  else
+    pass(std::false_type());
   if(!first_degenerate.empty()) {
     const Index f = first_degenerate.get();
     const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
     const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
     throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
   }
+  g.vertex_area = area_sums.finish(t, parallel);
+  if(request.want_angles) g.angle_sum = angle_sums.finish(t, parallel);
+  if(request.want_face_normals) g.face_normal_sum = normal_sums.finish(t, parallel);
 }
 
-/// Sum over the corners of each vertex of a per-corner array.
-inline Eigen::VectorXd gather_corner_sums(const Mesh_topology& t, const Working_array<double>& per_corner,
-                                          bool parallel)
+/// Area-weighted unit vertex normals from the sums of the incident face cross products
+/// (Corner_geometry::face_normal_sum), normalised in place; zero where the sum is.
+inline Positions vertex_normals(Positions face_normal_sums, bool parallel)
 {
-  Eigen::VectorXd out(t.num_vertices);
-  advise_huge_pages(out);
-  for_each_index(t.num_vertices, parallel, [&](Index v) {
-    double s = 0;
-    for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) s += per_corner[t.vertex_corners[k]];
-    out[v] = s;
-  });
-  return out;
-}
-
-/// Area-weighted vertex normals (normalised sum of the incident face cross products).
-inline Positions gather_vertex_normals(const Mesh_topology& t, const Corner_geometry& g, bool parallel)
-{
-  Positions N(t.num_vertices, 3);
-  for_each_index(t.num_vertices, parallel, [&](Index v) {
-    Eigen::Vector3d s = Eigen::Vector3d::Zero();
-    for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
-      const double* n = &g.face_normal[3 * std::size_t(t.vertex_corners[k] / 3)];
-      s += Eigen::Vector3d(n[0], n[1], n[2]);
-    }
+  for_each_index(Index(face_normal_sums.rows()), parallel, [&](Index v) {
+    const Eigen::Vector3d s = face_normal_sums.row(v);
     const double len = s.norm();
-    N.row(v) = len > 0 ? Eigen::Vector3d(s / len) : Eigen::Vector3d::Zero();
+    face_normal_sums.row(v) = len > 0 ? Eigen::Vector3d(s / len) : Eigen::Vector3d::Zero();
   });
-  return N;
+  return face_normal_sums;
 }
 
 /// (S X) row by row: sum_j S_ij (x_j - x_i), for the cotangent stiffness S = C. Computed from

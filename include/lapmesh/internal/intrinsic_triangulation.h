@@ -353,18 +353,23 @@ inline void intrinsic_face_corners(const Intrinsic_triangulation& it, Vertex_are
   lumped_corner_areas(area, face_area, cot, l2, share);
 }
 
-/// The corner cotangents and corner areas of the first `faces` faces of an intrinsic
-/// triangulation (all by default), in its corner order: the mesh's own while no edge was
-/// flipped, the front sheet first in a tufted cover.
-inline void intrinsic_corner_geometry(const Intrinsic_triangulation& it, Vertex_area area, bool parallel,
-                                      Corner_geometry& g, Index faces = -1)
+/// The corner cotangents and the vertex areas of an intrinsic triangulation without flips of the
+/// manifold mesh `t`: its triangles are t's, in t's corner order.
+inline void intrinsic_corner_geometry(const Mesh_topology& t, const Intrinsic_triangulation& it, Vertex_area area,
+                                      bool parallel, Corner_geometry& g)
 {
-  const Index m = faces < 0 ? it.num_faces() : faces;
+  const Index m = t.num_faces;
   g.cot.resize(3 * std::size_t(m));
-  g.corner_area.resize(3 * std::size_t(m));
+  Corner_value_sums<1> area_sums(t, !parallel);
   for_each_index(m, parallel, [&](Index f) {
-    intrinsic_face_corners(it, area, f, &g.cot[3 * std::size_t(f)], &g.corner_area[3 * std::size_t(f)]);
+    double share[3];
+    intrinsic_face_corners(it, area, f, &g.cot[3 * std::size_t(f)], share);
+    if(parallel)
+      area_sums.add_face<false>(f, share);
+    else
+      area_sums.add_face<true>(f, share);
   });
+  g.vertex_area = area_sums.finish(t, parallel);
 }
 
 /// The cotangent stiffness and the lumped mass of an intrinsic triangulation, per sheet (a

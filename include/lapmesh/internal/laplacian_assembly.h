@@ -42,9 +42,9 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
        !std::equal(t.inner.begin(), t.inner.end(), out.stiffness.innerIndexPtr()))
       make_pattern_matrix(t, out.stiffness, parallel);
     Corner_geometry g;
-    intrinsic_corner_geometry(it, area, parallel, g, t.num_faces);
+    intrinsic_corner_geometry(t, it, area, parallel, g);
     fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
-    out.mass = gather_corner_sums(t, g.corner_area, parallel);
+    out.mass = std::move(g.vertex_area);
     return;
   }
   require_manifold(t, to_string(laplacian));
@@ -62,10 +62,7 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
   }
   Corner_geometry g;
   compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  out.mass = gather_corner_sums(t, g.corner_area, parallel);
-  // The corner areas go before a stiffness that is not there yet is sized (implicit smoothing
-  // releases it between steps): the two are never held together.
-  Working_array<double>().swap(g.corner_area);
+  out.mass = std::move(g.vertex_area);
   size_stiffness();
   fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
 }
@@ -73,8 +70,8 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
 inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)
 {
   Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  return gather_corner_sums(t, g.corner_area, parallel);
+  compute_corner_geometry(t, P, Corner_request{area, false, false, false}, parallel, g);
+  return std::move(g.vertex_area);
 }
 
 /// Throws Mesh_error naming the first vertex with a non-positive mass. The spectral and
