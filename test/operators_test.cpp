@@ -956,5 +956,37 @@ TEST(Operators, FreedWorkingArraysAreKeptForTheNextCallWithinTheLimitAndNeverBes
   // Below 4 MiB an array comes from operator new and is never cached.
   { Working_array<double> heap((std::size_t(2) << 20) / sizeof(double)); }
   EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+
+  // release_to_system() empties an array and hands its mapping back instead of caching it; the
+  // arrays freed after it are cached again.
+  Working_array<double> handed_back(count), kept(count);
+  lapmesh::internal::release_to_system(handed_back);
+  EXPECT_TRUE(handed_back.empty());
+  EXPECT_EQ(handed_back.capacity(), 0u);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  Working_array<double>().swap(kept);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 3 * huge);
+  lapmesh::release_working_memory();
+}
+
+// laplacian_pencil() hands the positions, the triangles and the corner lists back before it
+// allocates the matrix: with the cache emptied first, what it leaves cached afterwards is the
+// rest of the topology (the pattern and its corner slots) and the cotangents, not the arrays of
+// one entry per corner or per face vertex.
+TEST(Operators, ThePencilHandsBackTheGeometryInputsBeforeItAllocatesTheMatrix)
+{
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  const Mesh m = to_mesh(lapmesh::torus(800, 400));  // 320k vertices: every corner array over 4 MiB
+  const std::size_t corners = 3 * num_faces(m), nonzeros = num_vertices(m) + 2 * num_edges(m);
+  const auto whole_huge_pages = [](std::size_t bytes) { return ((bytes + (std::size_t(1) << 21) - 1) >> 21) << 21; };
+  lapmesh::release_working_memory();
+  const auto pencil = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  ASSERT_EQ(std::size_t(pencil.stiffness.nonZeros()), nonzeros);
+  // slot_corners (two corners per slot), inner (one index per slot), the cotangents (one per
+  // corner); the outer indices and the diagonal slots are under 4 MiB.
+  const std::size_t expected = whole_huge_pages(nonzeros * 2 * sizeof(int)) +
+                               whole_huge_pages(nonzeros * sizeof(int)) + whole_huge_pages(corners * sizeof(double));
+  EXPECT_EQ(lapmesh::cached_working_memory(), expected);
+  lapmesh::release_working_memory();
 }
 #endif

@@ -154,6 +154,51 @@ TEST(Smoothing, TheFactorisationEmptiesTheCacheOfWorkingArraysFirst)
 }
 #endif
 
+// The CGAL front end gives the worker its topology to release: once the last operator is
+// assembled, the corner lists and the pattern go (they are not held beside the factorisation);
+// the triangles stay for shape restoration. The steps before the last keep everything, and
+// the positions are those of the worker that releases nothing, to the bit.
+TEST(Smoothing, TheLastFactorisationRunsWithoutTheCornerListsAndThePattern)
+{
+  using namespace lapmesh::internal;
+  lapmesh::Triangle_soup soup = lapmesh::icosphere(3);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+  for(auto& p : soup.points)
+    for(double& x : p) x += jitter(rng);
+  const Index n = Index(soup.points.size());
+  Working_array<Index> triangles;
+  for(const auto& f : soup.triangles) triangles.insert(triangles.end(), f.begin(), f.end());
+  Positions P0(n, 3);
+  for(Index i = 0; i < n; ++i) P0.row(i) = Eigen::RowVector3d(soup.points[i][0], soup.points[i][1], soup.points[i][2]);
+
+  struct Case { int iterations; bool fixed_operator, restore_volume; };
+  for(const Case c : {Case{1, false, false}, Case{3, false, true}, Case{3, true, false}}) {
+    Smoothing_settings s;
+    s.area = lapmesh::Vertex_area::mixed;
+    s.lambda = 1e-3;
+    s.iterations = c.iterations;
+    s.fixed_operator = c.fixed_operator;
+    s.restore_volume = c.restore_volume;
+    Mesh_topology kept = build_topology(n, triangles), released = build_topology(n, triangles);
+    const std::size_t nonzeros = released.inner.size();
+    Positions a = P0, b = P0;
+    smooth_positions(kept, a, std::vector<char>(std::size_t(n), 0), s);
+    std::vector<std::size_t> pattern_after_step;
+    s.progress = [&](int, int) { pattern_after_step.push_back(released.inner.size()); };
+    smooth_positions_releasing_topology(released, b, std::vector<char>(std::size_t(n), 0), s);
+    EXPECT_EQ((a - b).norm(), 0.0) << c.iterations << " " << c.fixed_operator;
+    // A rebuilt operator needs the pattern for every step but the last; a fixed one for none.
+    ASSERT_EQ(pattern_after_step.size(), std::size_t(c.iterations));
+    for(int it = 0; it < c.iterations; ++it)
+      EXPECT_EQ(pattern_after_step[std::size_t(it)], c.fixed_operator || it + 1 == c.iterations ? 0u : nonzeros) << it;
+    EXPECT_TRUE(released.corner_begin.empty() && released.vertex_corners.empty() && released.outer.empty() &&
+                released.diagonal_slot.empty() && released.slot_corners.empty());
+    EXPECT_TRUE(std::equal(released.triangles.begin(), released.triangles.end(), kept.triangles.begin()));
+    EXPECT_EQ(released.triangles.size(), kept.triangles.size());
+  }
+}
+
 TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
 {
   for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {

@@ -56,11 +56,21 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
     if(internal::choose_laplacian(np) == Laplacian::uniform && internal::uniform_pencil_from_edges(tm, np, out))
       return out;
-  const auto mesh =
+  auto mesh =
     internal::extract_mesh(tm, np, internal::Topology_detail::pattern, internal::is_parallel<ConcurrencyTag>());
+  // What the matrix's fill does not read goes back to the system before the matrix is allocated,
+  // which the cache of working arrays could not serve.
+  const auto release_geometry_inputs = [&] {
+    mesh.positions = internal::Positions();
+    internal::release_to_system(mesh.topology.triangles);
+    internal::release_to_system(mesh.topology.corner_begin);
+    internal::release_to_system(mesh.topology.vertex_corners);
+    internal::release_to_system(mesh.vertices);
+    internal::release_to_system(mesh.vertex_rows);
+  };
   internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
                             internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
-                            internal::choose_mollification(np));
+                            internal::choose_mollification(np), release_geometry_inputs);
   if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
     mesh.move_to_rows(out.stiffness);
     out.mass = mesh.to_rows(out.mass, 0.0);

@@ -150,7 +150,7 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   }
 
   Smoothing_report report = mesh.naming_input_vertices(
-    [&] { return smooth_positions(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s); });
+    [&] { return smooth_positions_releasing_topology(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s); });
 
   // Write back only what moved: fixed vertices keep their exact kernel coordinates. What moved
   // is told by the mesh's own points, read as the extraction read them (point_coordinates()),

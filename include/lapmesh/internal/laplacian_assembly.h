@@ -23,9 +23,13 @@ namespace internal {
 /// matrix with t's pattern (repeated assembly while smoothing) only the values are written;
 /// the intrinsic Delaunay Laplacian has a pattern of its own (its flipped edges), rebuilt
 /// each time.
-inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
-                            Vertex_area area, bool parallel, Laplacian_pencil& out,
-                            double mollification = default_mollification_factor)
+/// `after_geometry()` is called once the corner geometry of the cotangent Laplacian is computed,
+/// before the stiffness is sized: from then on neither the positions nor the triangles and the
+/// corner lists of `t` are read, and a caller that needs them no more may release them there.
+template <typename AfterGeometry = void (*)()>
+void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian laplacian, Vertex_area area,
+                     bool parallel, Laplacian_pencil& out, double mollification = default_mollification_factor,
+                     const AfterGeometry& after_geometry = [] {})
 {
   if(laplacian == Laplacian::intrinsic_delaunay) {
     Intrinsic_delaunay_stats stats;
@@ -63,6 +67,7 @@ inline void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacia
   Corner_geometry g;
   compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
   out.mass = std::move(g.vertex_area);
+  after_geometry();
   size_stiffness();
   fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
 }

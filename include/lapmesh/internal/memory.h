@@ -127,13 +127,20 @@ inline void* allocate_large(std::size_t bytes)
   return ::operator new(bytes);
 }
 
+/// While true, deallocate_large() hands mappings back to the system (release_to_system()).
+inline bool& bypassing_mapping_cache() noexcept
+{
+  thread_local bool bypassing = false;
+  return bypassing;
+}
+
 /// Frees a block of allocate_large(bytes); a mapping goes to the cache where it fits.
 inline void deallocate_large(void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
-    if(!Mapping_cache::instance().keep(p, size)) munmap(p, size);
+    if(bypassing_mapping_cache() || !Mapping_cache::instance().keep(p, size)) munmap(p, size);
     return;
   }
 #endif
@@ -181,6 +188,19 @@ struct Working_array_allocator : std::allocator<T>
 /// from 4 MiB on, in glibc's heap below.
 template <typename T>
 using Working_array = std::vector<T, Working_array_allocator<T>>;
+
+/// Empties `array` and hands its memory back to the system, not to the cache of mappings: for
+/// memory that allocations outside working arrays (a result's Eigen matrix) are about to need,
+/// and which the cache could not give them.
+template <typename T>
+void release_to_system(Working_array<T>& array) noexcept
+{
+  bool& bypassing = bypassing_mapping_cache();
+  const bool was = bypassing;
+  bypassing = true;
+  Working_array<T>().swap(array);
+  bypassing = was;
+}
 
 /// advise_huge_pages() for the values of a dense Eigen array, sized and not yet written.
 template <typename Derived>

@@ -126,7 +126,12 @@ inline void check_settings(const Smoothing_settings& s)
 class Smoothing_worker
 {
 public:
-  Smoothing_worker(const Mesh_topology& t, Positions& P, const Smoothing_settings& s) : m_t(t), m_P(P), m_s(s) {}
+  /// `releasable`: the topology `t` itself, when the caller needs none of its arrays after the
+  /// call (the worker then releases those that no later step reads; see release_topology()).
+  Smoothing_worker(const Mesh_topology& t, Positions& P, const Smoothing_settings& s,
+                   Mesh_topology* releasable = nullptr)
+    : m_t(t), m_P(P), m_s(s), m_releasable_topology(releasable)
+  {}
 
   /// `fixed[i]` != 0 marks a user-constrained vertex; boundary vertices are added here.
   Smoothing_report run(const std::vector<char>& fixed)
@@ -242,6 +247,7 @@ private:
       const auto t0 = Clock::now();
       fill_rhs();  // before factorize(), which may release the stiffness
       m_report.solve_seconds += seconds_since(t0);
+      if(!m_rebuild || it + 1 == m_s.iterations) release_topology();  // the last operator is assembled
       if(!m_factorized) factorize(it);
       const auto t1 = Clock::now();
       if(!m_solver->solve_in_place(m_B) || !m_B.allFinite())
@@ -414,6 +420,20 @@ private:
     return solved;
   }
 
+  /// Once no operator is assembled any more, the corner lists and the pattern of a releasable
+  /// topology are not read again (the triangles are: shape restoration and the error that names
+  /// a collapsed face), so they are not held beside the factorisation, whose solver empties the
+  /// cache of working arrays before it starts.
+  void release_topology()
+  {
+    if(!m_releasable_topology) return;
+    Mesh_topology& t = *m_releasable_topology;
+    for(Working_array<Index>* array : {&t.corner_begin, &t.vertex_corners, &t.outer, &t.inner, &t.diagonal_slot})
+      Working_array<Index>().swap(*array);
+    Working_array<std::array<Index, 2>>().swap(t.slot_corners);
+    m_releasable_topology = nullptr;
+  }
+
   /// Numeric factorisation of the free block for step `it`.
   void factorize(int it)
   {
@@ -450,6 +470,7 @@ private:
   const Mesh_topology& m_t;
   Positions& m_P;
   const Smoothing_settings& m_s;
+  Mesh_topology* m_releasable_topology;
   Smoothing_report m_report;
   std::vector<char> m_free_mask;
   std::optional<Shape_restoration> m_restoration;
@@ -476,6 +497,15 @@ inline Smoothing_report smooth_positions(const Mesh_topology& t, Positions& P, s
                                          const Smoothing_settings& s)
 {
   return Smoothing_worker(t, P, s).run(fixed);
+}
+
+/// smooth_positions() for a caller that reads nothing of `t` afterwards: of the implicit
+/// schemes' topology only the counts, the triangles and the boundary flags are left once the last
+/// operator is assembled.
+inline Smoothing_report smooth_positions_releasing_topology(Mesh_topology& t, Positions& P, std::vector<char> fixed,
+                                                            const Smoothing_settings& s)
+{
+  return Smoothing_worker(t, P, s, &t).run(fixed);
 }
 
 } // namespace internal
