@@ -10,6 +10,8 @@
 # Environment: BUILD_DIR (default build), SANITIZE_DIR (default build-sanitize), JOBS (default nproc).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# ccache hashes paths under the checkout relative to it: two clones share their compilations.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$ROOT}"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
 JOBS="${JOBS:-$(nproc)}"
 
