@@ -1,4 +1,4 @@
-// Internal: per-corner geometry of a triangle mesh and the per-vertex gathers built on it.
+// Internal: per-corner geometry of a triangle mesh and its sums at the vertices.
 //
 // One streaming pass over the faces computes, for every corner, the cotangent of its angle and
 // its share of the vertex area, summed at its vertex (and, on request, the angle and the face
@@ -65,7 +65,7 @@ class Corner_value_sums
 public:
   using Sums = std::conditional_t<Width == 1, Eigen::VectorXd, Positions>;
 
-  /// `wanted` false: nothing is allocated and add() must not be called.
+  /// `wanted` false: nothing is allocated and add_face() must not be called.
   Corner_value_sums(const Mesh_topology& t, bool scatter, bool wanted = true)
     : m_tri(t.triangles.data()), m_scatter(scatter)
   {
@@ -80,7 +80,7 @@ public:
       m_out = m_values.data();
     }
   }
-  /// Fetches the sums of face f's vertices ahead of add() (Scatter).
+  /// Fetches the sums of face f's vertices ahead of add_face() (Scatter only).
   void prefetch_face(Index f) const
   {
     for(Index a = 0; a < 3; ++a) prefetch(m_out + std::size_t(Width) * std::size_t(m_tri[3 * f + a]));
