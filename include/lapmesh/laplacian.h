@@ -63,8 +63,7 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   const auto release_geometry_inputs = [&] {
     mesh.positions = internal::Positions();
     internal::release_to_system(mesh.topology.triangles);
-    internal::release_to_system(mesh.topology.corner_begin);
-    internal::release_to_system(mesh.topology.vertex_corners);
+    mesh.topology.release_corner_lists();
     internal::release_to_system(mesh.vertices);
     internal::release_to_system(mesh.vertex_rows);
   };

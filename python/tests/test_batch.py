@@ -288,8 +288,6 @@ def test_spectrum_npz_is_the_basis(corpus, tmp_path):
     assert os.path.exists(batch.results(str(tmp_path), stem, "spectrum")[1])
 
 
-
-
 def test_worker_memory_limit(corpus, tmp_path):
     """A worker with a 300 MB memory limit and two meshes too big for it: an OFF torus of 409,600
     vertices, refused from its header's vertex count before it is read (reading alone would take

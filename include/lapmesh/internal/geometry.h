@@ -59,18 +59,17 @@ struct Corner_request
 /// threads write one sum). Both add a vertex's values in ascending corner order, the order of
 /// its corner list (sort_corners_by_vertex()), so the sums are the same, bitwise. `PerFace`: one
 /// value per face, added to each of its three vertices.
-template <int Width, bool PerFace = false>
+template <bool Scatter, int Width, bool PerFace = false>
 class Corner_value_sums
 {
 public:
   using Sums = std::conditional_t<Width == 1, Eigen::VectorXd, Positions>;
 
   /// `wanted` false: nothing is allocated and add_face() must not be called.
-  Corner_value_sums(const Mesh_topology& t, bool scatter, bool wanted = true)
-    : m_tri(t.triangles.data()), m_scatter(scatter)
+  explicit Corner_value_sums(const Mesh_topology& t, bool wanted = true) : m_tri(t.triangles.data())
   {
     if(!wanted) return;
-    if(scatter) {
+    if constexpr(Scatter) {
       m_sums.resize(t.num_vertices, Width);
       advise_huge_pages(m_sums);
       m_sums.setZero();
@@ -80,14 +79,14 @@ public:
       m_out = m_values.data();
     }
   }
-  /// Fetches the sums of face f's vertices ahead of add_face() (Scatter only).
+  /// Fetches the sums of face f's vertices ahead of add_face().
   void prefetch_face(Index f) const
   {
-    for(Index a = 0; a < 3; ++a) prefetch(m_out + std::size_t(Width) * std::size_t(m_tri[3 * f + a]));
+    if constexpr(Scatter)
+      for(Index a = 0; a < 3; ++a) prefetch(m_out + std::size_t(Width) * std::size_t(m_tri[3 * f + a]));
   }
   /// Adds the values of face f's corners (Width doubles each, side by side), or with
   /// PerFace the face's value to each corner.
-  template <bool Scatter>
   void add_face(Index f, const double* values)
   {
     if constexpr(Scatter) {
@@ -104,29 +103,42 @@ public:
   /// The sums (once, after the pass); the per-corner values, if any, are released.
   Sums finish(const Mesh_topology& t, bool parallel)
   {
-    if(m_scatter) return std::move(m_sums);
-    Sums out(t.num_vertices, Width);
-    advise_huge_pages(out);
-    for_each_index(t.num_vertices, parallel, [&](Index v) {
-      double s[Width] = {};
-      for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
-        const Index c = t.vertex_corners[k];
-        const double* value = &m_values[std::size_t(Width) * std::size_t(PerFace ? c / 3 : c)];
-        for(int j = 0; j < Width; ++j) s[j] += value[j];
-      }
-      std::copy(s, s + Width, out.data() + std::size_t(Width) * std::size_t(v));
-    });
-    Working_array<double>().swap(m_values);
-    return out;
+    if constexpr(Scatter) {
+      return std::move(m_sums);
+    } else {
+      Sums out(t.num_vertices, Width);
+      advise_huge_pages(out);
+      for_each_index(t.num_vertices, parallel, [&](Index v) {
+        double s[Width] = {};
+        for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
+          const Index c = t.vertex_corners[k];
+          const double* value = &m_values[std::size_t(Width) * std::size_t(PerFace ? c / 3 : c)];
+          for(int j = 0; j < Width; ++j) s[j] += value[j];
+        }
+        std::copy(s, s + Width, out.data() + std::size_t(Width) * std::size_t(v));
+      });
+      Working_array<double>().swap(m_values);
+      return out;
+    }
   }
 
 private:
   const Index* m_tri;
-  bool m_scatter;
   double* m_out = nullptr;
-  Sums m_sums;
-  Working_array<double> m_values;
+  Sums m_sums;                     // Scatter
+  Working_array<double> m_values;  // not Scatter
 };
+
+/// Calls pass(std::bool_constant<Scatter>()) with Scatter = !parallel: a pass over the faces
+/// compiled once per way of summing (Corner_value_sums), so that neither branches per corner.
+template <typename Pass>
+void with_corner_sums_for(bool parallel, const Pass& pass)
+{
+  if(parallel)
+    pass(std::false_type());
+  else
+    pass(std::true_type());
+}
 
 /// The three corners' shares of a face's area for the lumped mass of kind `area`, from the
 /// corner cotangents and the squared lengths of the sides opposite each corner: a third each
@@ -169,26 +181,21 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
 {
   const Index m = t.num_faces;
   if(request.want_cotangents) g.cot.resize(3 * std::size_t(m));
-  const bool scatter = !parallel;
-  Corner_value_sums<1> area_sums(t, scatter), angle_sums(t, scatter, request.want_angles);
-  Corner_value_sums<3, true> normal_sums(t, scatter, request.want_face_normals);
   // How many faces ahead the positions of a face's corners are prefetched.
   constexpr Index prefetch_distance = 16;
-
-  First_index<Index> first_degenerate;
   const Index* tri = t.triangles.data();
 
-  // The pass is compiled once per way of summing, so that neither branches per corner.
-  const auto pass = [&](auto scatter_constant) {
-    constexpr bool Scatter = decltype(scatter_constant)::value;
+  with_corner_sums_for(parallel, [&](auto scatter) {
+    constexpr bool Scatter = decltype(scatter)::value;
+    Corner_value_sums<Scatter, 1> area_sums(t), angle_sums(t, request.want_angles);
+    Corner_value_sums<Scatter, 3, true> normal_sums(t, request.want_face_normals);
+    First_index<Index> first_degenerate;
     for_each_index(m, parallel, [&](Index f) {
       if(f + prefetch_distance < m) {
         for(Index a = 0; a < 3; ++a) prefetch(&P(tri[3 * (f + prefetch_distance) + a], 0));
-        if constexpr(Scatter) {
-          area_sums.prefetch_face(f + prefetch_distance);
-          if(request.want_angles) angle_sums.prefetch_face(f + prefetch_distance);
-          if(request.want_face_normals) normal_sums.prefetch_face(f + prefetch_distance);
-        }
+        area_sums.prefetch_face(f + prefetch_distance);
+        if(request.want_angles) angle_sums.prefetch_face(f + prefetch_distance);
+        if(request.want_face_normals) normal_sums.prefetch_face(f + prefetch_distance);
       }
       const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]),
                             p2 = P.row(tri[3 * f + 2]);
@@ -212,7 +219,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
       const double squared[3] = {l0, l1, l2};
       double share[3];
       lumped_corner_areas(request.area, 0.5 * dbl_area, cot, squared, share);
-      area_sums.template add_face<Scatter>(f, share);
+      area_sums.add_face(f, share);
       if(request.want_angles) {
         // The angle opposite the longest edge is pi minus the other two: one atan2 fewer,
         // and the three angles of every face sum to pi, which makes Gauss–Bonnet exact.
@@ -223,24 +230,20 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
         angle[a1] = std::atan2(dbl_area, dots[a1]);
         angle[a2] = std::atan2(dbl_area, dots[a2]);
         angle[largest] = M_PI - angle[a1] - angle[a2];
-        angle_sums.template add_face<Scatter>(f, angle);
+        angle_sums.add_face(f, angle);
       }
-      if(request.want_face_normals) normal_sums.template add_face<Scatter>(f, cross.data());
+      if(request.want_face_normals) normal_sums.add_face(f, cross.data());
     });
-  };
-  if(scatter)
-    pass(std::true_type());
-  else
-    pass(std::false_type());
-  if(!first_degenerate.empty()) {
-    const Index f = first_degenerate.get();
-    const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
-    const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
-    throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
-  }
-  g.vertex_area = area_sums.finish(t, parallel);
-  if(request.want_angles) g.angle_sum = angle_sums.finish(t, parallel);
-  if(request.want_face_normals) g.face_normal_sum = normal_sums.finish(t, parallel);
+    if(!first_degenerate.empty()) {
+      const Index f = first_degenerate.get();
+      const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
+      const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
+      throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
+    }
+    g.vertex_area = area_sums.finish(t, parallel);
+    if(request.want_angles) g.angle_sum = angle_sums.finish(t, parallel);
+    if(request.want_face_normals) g.face_normal_sum = normal_sums.finish(t, parallel);
+  });
 }
 
 /// Area-weighted unit vertex normals from the sums of the incident face cross products

@@ -360,16 +360,15 @@ inline void intrinsic_corner_geometry(const Mesh_topology& t, const Intrinsic_tr
 {
   const Index m = t.num_faces;
   g.cot.resize(3 * std::size_t(m));
-  Corner_value_sums<1> area_sums(t, !parallel);
-  for_each_index(m, parallel, [&](Index f) {
-    double share[3];
-    intrinsic_face_corners(it, area, f, &g.cot[3 * std::size_t(f)], share);
-    if(parallel)
-      area_sums.add_face<false>(f, share);
-    else
-      area_sums.add_face<true>(f, share);
+  with_corner_sums_for(parallel, [&](auto scatter) {
+    Corner_value_sums<decltype(scatter)::value, 1> area_sums(t);
+    for_each_index(m, parallel, [&](Index f) {
+      double share[3];
+      intrinsic_face_corners(it, area, f, &g.cot[3 * std::size_t(f)], share);
+      area_sums.add_face(f, share);
+    });
+    g.vertex_area = area_sums.finish(t, parallel);
   });
-  g.vertex_area = area_sums.finish(t, parallel);
 }
 
 /// The cotangent stiffness and the lumped mass of an intrinsic triangulation, per sheet (a

@@ -71,10 +71,7 @@ public:
   {
     std::lock_guard<std::mutex> lock(m_mutex);
     if(bytes > m_limit) return false;
-    while(m_count > 0 && (m_count == max_entries || m_total + bytes > m_limit)) {
-      unmap(m_entries[0].address, m_entries[0].bytes);
-      erase(0);
-    }
+    while(m_count > 0 && (m_count == max_entries || m_total + bytes > m_limit)) evict_oldest();
     m_entries[m_count++] = Entry{address, bytes};
     m_total += bytes;
     return true;
@@ -104,10 +101,7 @@ public:
   {
     std::lock_guard<std::mutex> lock(m_mutex);
     m_limit = bytes;
-    while(m_count > 0 && m_total > m_limit) {
-      unmap(m_entries[0].address, m_entries[0].bytes);
-      erase(0);
-    }
+    while(m_count > 0 && m_total > m_limit) evict_oldest();
   }
 
 private:
@@ -141,6 +135,11 @@ private:
     for(std::size_t i = 0; i < m_count; ++i) unmap(m_entries[i].address, m_entries[i].bytes);
     m_count = 0;
     m_total = 0;
+  }
+  void evict_oldest() noexcept
+  {
+    unmap(m_entries[0].address, m_entries[0].bytes);
+    erase(0);
   }
   /// Removes entry i, keeping the others oldest first.
   void erase(std::size_t i) noexcept

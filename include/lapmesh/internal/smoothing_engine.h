@@ -422,15 +422,12 @@ private:
 
   /// Once no operator is assembled any more, the corner lists and the pattern of a releasable
   /// topology are not read again (the triangles are: shape restoration and the error that names
-  /// a collapsed face), so they are not held beside the factorisation, whose solver empties the
-  /// cache of working arrays before it starts.
+  /// a collapsed face), so they are not held beside the factorisation.
   void release_topology()
   {
     if(!m_releasable_topology) return;
-    Mesh_topology& t = *m_releasable_topology;
-    for(Working_array<Index>* array : {&t.corner_begin, &t.vertex_corners, &t.outer, &t.inner, &t.diagonal_slot})
-      Working_array<Index>().swap(*array);
-    Working_array<std::array<Index, 2>>().swap(t.slot_corners);
+    m_releasable_topology->release_corner_lists();
+    m_releasable_topology->release_pattern();
     m_releasable_topology = nullptr;
   }
 

@@ -141,6 +141,21 @@ struct Mesh_topology
   std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
 
   Index num_nonzeros() const { return static_cast<Index>(inner.size()); }
+  /// Hands the corner lists back to the system (release_to_system()), for a caller that reads
+  /// none of them any more.
+  void release_corner_lists()
+  {
+    release_to_system(corner_begin);
+    release_to_system(vertex_corners);
+  }
+  /// Hands the pattern and its corner slots back to the system, likewise.
+  void release_pattern()
+  {
+    release_to_system(outer);
+    release_to_system(inner);
+    release_to_system(diagonal_slot);
+    release_to_system(slot_corners);
+  }
   /// False for a topology of corners only (build_corner_topology()): no pattern, no slots.
   bool has_pattern() const { return !outer.empty(); }
   Index degree(Index v) const { return outer[v + 1] - outer[v] - 1; }
