@@ -7,6 +7,7 @@
 #include <CGAL/Polygon_mesh_processing/measure.h>
 
 #include <ctime>
+#include <limits>
 #include <cstdlib>
 #include <fstream>
 #include <random>
@@ -229,6 +230,42 @@ TEST(Io, BinaryStlMergesVerticesInOrderOfFirstAppearance)
   lapmesh::io::read_triangle_mesh(write_text("binary.stl", data), m);
   ASSERT_EQ(num_vertices(m), 4u);
   EXPECT_EQ(m.point(Mesh::Vertex_index(3)), Point(1, 1, 0));  // the only new vertex of the 2nd face
+}
+
+TEST(IoHostile, StlMergingLooksAtFewSlotsForFloatGridsAndNoneForNaN)
+{
+  using lapmesh::io::internal::Stl_vertex_merger;
+  // A grid of floats: as doubles their low 29 bits are zero, which a hash that does not mix
+  // them down piles into a few slots of a power-of-two table.
+  lapmesh::io::Polygon_soup soup;
+  Stl_vertex_merger merge(soup);
+  const int side = 64;
+  std::size_t lookups = 0;
+  for(int pass = 0; pass < 2; ++pass)
+    for(int i = 0; i < side; ++i)
+      for(int j = 0; j < side; ++j)
+        for(int k = 0; k < 8; ++k) {
+          const std::array<double, 3> p = {double(0.25f * float(i)), double(float(j) * 1024.f), double(float(k) - 3.f)};
+          const std::size_t expected = std::size_t((i * side + j) * 8 + k);  // first appearance
+          ASSERT_EQ(merge.index_of(p), expected) << pass << " " << i << " " << j << " " << k;
+          ++lookups;
+        }
+  EXPECT_EQ(soup.points.size(), std::size_t(side * side * 8));
+  EXPECT_LT(double(merge.probes()) / double(lookups), 2.0);
+
+  // -0 and 0 are one position, kept as it first came.
+  const std::size_t zero = merge.index_of({-0.0, 0.0, 0.5});
+  EXPECT_EQ(zero, std::size_t(side * side * 8));  // not on the grid
+  EXPECT_EQ(merge.index_of({0.0, -0.0, 0.5}), zero);
+  EXPECT_TRUE(std::signbit(soup.points[zero][0]));
+
+  // A NaN equals nothing, not even itself, and takes no look-up at all: a file of them was
+  // quadratic.
+  const std::size_t before = merge.probes(), first = soup.points.size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for(std::size_t i = 0; i < 100000; ++i) EXPECT_EQ(merge.index_of({double(i % 3), nan, 1.0}), first + i);
+  EXPECT_EQ(merge.probes(), before);
+  EXPECT_EQ(merge.index_of({0.25, 1024.0, -3.0}), std::size_t((1 * side + 1) * 8));  // the table is intact
 }
 
 TEST(Io, AtomicWritesLeaveNothingBehindOnFailure)

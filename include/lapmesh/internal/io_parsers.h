@@ -23,7 +23,6 @@
 #include <cstring>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 #include <vector>
 
 namespace lapmesh {
@@ -299,22 +298,24 @@ inline Polygon_soup parse_obj(std::string_view data)
     const std::string_view kw = r.token();
     if(kw == "v") {
       std::array<double, 3> p;
-      r.coordinates(p, "vertex " + std::to_string(soup.points.size()));
-      skip_numeric_fields(r, 5, "vertex " + std::to_string(soup.points.size()));  // w, or a colour
+      const auto vertex = [&soup] { return "vertex " + std::to_string(soup.points.size()); };
+      r.coordinates(p, vertex);
+      skip_numeric_fields(r, 5, vertex);  // w, or a colour
       soup.points.push_back(p);
     } else if(kw == "f") {
       std::vector<std::size_t> poly;
+      poly.reserve(4);  // a triangle or a quad without growing
       for(std::string_view t = r.token(); !t.empty(); t = r.token()) {
         const std::string_view head = t.substr(0, t.find('/'));  // "v/vt/vn": keep v
-        const std::string face = "face " + std::to_string(soup.polygons.size());
+        const auto face = [&soup] { return "face " + std::to_string(soup.polygons.size()); };
         long long idx = 0;
         const Int_parse res = parse_integer(head, idx);
         const long long n = static_cast<long long>(soup.points.size());
         if(res == Int_parse::not_integer || (res == Int_parse::ok && idx == 0))
-          r.fail(face + ": bad vertex reference " + excerpt(t));
+          r.fail(face() + ": bad vertex reference " + excerpt(t));
         const long long zero_based = res != Int_parse::ok ? -1 : idx > 0 ? idx - 1 : n + idx;  // negative: relative
         if(zero_based < 0 || zero_based >= n)
-          r.fail(face + ": vertex " + excerpt(head) + " refers to a vertex not defined before it");
+          r.fail(face() + ": vertex " + excerpt(head) + " refers to a vertex not defined before it");
         poly.push_back(std::size_t(zero_based));
       }
       soup.polygons.push_back(std::move(poly));
@@ -385,13 +386,14 @@ public:
   bool ascii() const { return m_format == Format::ascii; }
 
   /// A value of integer type (exact); fails for a value outside the type in ASCII.
-  long long integer(Ply_type t, const std::string& where)
+  template <typename Label>
+  long long integer(Ply_type t, const Label& where)
   {
     if(ascii()) {
       const std::string_view tok = m_text.any_token();
       if(tok.empty()) truncated(where);
       long long x = 0;
-      if(parse_integer(tok, x) != Int_parse::ok || !fits(t, x)) fail(where + ": bad integer " + excerpt(tok));
+      if(parse_integer(tok, x) != Int_parse::ok || !fits(t, x)) fail(message_text(where) + ": bad integer " + excerpt(tok));
       return x;
     }
     const unsigned char* b = take(ply_size(t), where);
@@ -405,14 +407,15 @@ public:
     }
   }
   /// A value of any type as a double.
-  double real(Ply_type t, const std::string& where)
+  template <typename Label>
+  double real(Ply_type t, const Label& where)
   {
     if(ply_is_integer(t)) return double(integer(t, where));
     if(ascii()) {
       const std::string_view tok = m_text.any_token();
       if(tok.empty()) truncated(where);
       double x = 0;
-      if(!parse_double(tok, x)) fail(where + ": bad number " + excerpt(tok));
+      if(!parse_double(tok, x)) fail(message_text(where) + ": bad number " + excerpt(tok));
       return x;
     }
     const unsigned char* b = take(ply_size(t), where);
@@ -458,8 +461,13 @@ private:
     default: return x >= 0 && x <= 4294967295LL;
     }
   }
-  [[noreturn]] void truncated(const std::string& where) const { fail("truncated file: " + where + " is missing"); }
-  const unsigned char* take(std::size_t n, const std::string& where)
+  template <typename Label>
+  [[noreturn]] void truncated(const Label& where) const
+  {
+    fail("truncated file: " + message_text(where) + " is missing");
+  }
+  template <typename Label>
+  const unsigned char* take(std::size_t n, const Label& where)
   {
     if(std::size_t(m_end - m_p) < n) truncated(where);
     const unsigned char* b = reinterpret_cast<const unsigned char*>(m_p);
@@ -588,7 +596,7 @@ inline Polygon_soup parse_ply(std::string_view data)
     for(unsigned long long i = 0; i < e.count; ++i) {
       for(int k = 0; k < int(e.properties.size()); ++k) {
         const Ply_property& p = e.properties[std::size_t(k)];
-        const std::string where = e.name + " " + std::to_string(i) + ": property " + p.name;
+        const auto where = [&] { return e.name + " " + std::to_string(i) + ": property " + p.name; };
         if(!p.is_list) {
           const double x = in.real(p.type, where);
           if(is_vertex)
@@ -596,10 +604,10 @@ inline Polygon_soup parse_ply(std::string_view data)
               if(xyz[c] == k) soup.points[std::size_t(i)][std::size_t(c)] = x;
           continue;
         }
-        const long long len = in.integer(p.count_type, where + ": list length");
-        if(len < 0) in.fail(where + ": negative list length " + std::to_string(len));
+        const long long len = in.integer(p.count_type, [&] { return where() + ": list length"; });
+        if(len < 0) in.fail(where() + ": negative list length " + std::to_string(len));
         check_fits((unsigned long long)len, in.ascii() ? 2 : ply_size(p.type), in.remaining() + 1,
-                   "list entries in " + e.name + " " + std::to_string(i));
+                   [&] { return "list entries in " + e.name + " " + std::to_string(i); });
         if(is_face && k == indices) {
           auto& poly = soup.polygons[std::size_t(i)];
           poly.resize(std::size_t(len));
@@ -623,42 +631,88 @@ inline Polygon_soup parse_ply(std::string_view data)
 // ---------------------------------------------------------------------------------------- STL
 
 /// STL has no shared vertices: equal positions are merged, numbered in order of first
-/// appearance (0 and -0 are one position; a NaN is never equal, and is refused later).
+/// appearance (0 and -0 are one position). A position with a NaN equals none, so it is not
+/// looked up: a file of NaNs takes one step per vertex, not one per vertex before it.
+/// Open addressing over the point indices, at most half full. The hash mixes every bit: the
+/// positions of a binary STL are floats, whose low 29 bits are zero as doubles.
 class Stl_vertex_merger
 {
 public:
-  explicit Stl_vertex_merger(Polygon_soup& soup) : m_soup(soup) {}
+  /// `expected`: the number of distinct positions likely to come, to size the table once.
+  explicit Stl_vertex_merger(Polygon_soup& soup, std::size_t expected = 0) : m_soup(soup)
+  {
+    std::size_t capacity = 64;  // grows as needed; `expected` sizes it up to 2^25 slots
+    while(capacity < 2 * expected && capacity < (std::size_t(1) << 25)) capacity *= 2;
+    m_slots.assign(capacity, empty_slot);
+  }
   std::size_t index_of(const std::array<double, 3>& p)
   {
-    const auto [it, inserted] = m_index.emplace(p, m_soup.points.size());
-    if(inserted) m_soup.points.push_back(p);
-    return it->second;
+    if(std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) return append(p);
+    if(2 * (m_soup.points.size() + 1) > m_slots.size()) grow();
+    const std::size_t mask = m_slots.size() - 1;
+    for(std::size_t s = hash(p) & mask;; s = (s + 1) & mask) {
+      ++m_probes;
+      const std::uint32_t i = m_slots[s];
+      if(i == empty_slot) {
+        m_slots[s] = std::uint32_t(m_soup.points.size());
+        return append(p);
+      }
+      if(m_soup.points[i] == p) return i;  // compares as doubles: -0 == 0
+    }
   }
+  /// The slots looked at so far, over all lookups.
+  std::size_t probes() const { return m_probes; }
 
 private:
-  struct Hash
+  static constexpr std::uint32_t empty_slot = 0xffffffffu;
+  static std::uint64_t mix(std::uint64_t x)
   {
-    std::size_t operator()(const std::array<double, 3>& p) const
-    {
-      std::size_t h = 0;
-      for(double c : p) {
-        const double normalized = c == 0 ? 0.0 : c;  // -0 hashes as 0
-        std::uint64_t bits;
-        std::memcpy(&bits, &normalized, 8);
-        h = (h ^ std::size_t(bits)) * 0x100000001b3ULL;
-      }
-      return h;
+    x ^= x >> 30;
+    x *= 0xbf58476d1ce4e5b9ULL;
+    x ^= x >> 27;
+    x *= 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+  }
+  static std::uint64_t hash(const std::array<double, 3>& p)
+  {
+    std::uint64_t h = 0;
+    for(double c : p) {
+      const double normalized = c == 0 ? 0.0 : c;  // -0 hashes as 0
+      std::uint64_t bits;
+      std::memcpy(&bits, &normalized, 8);
+      h = mix(h + bits);
     }
-  };
+    return h;
+  }
+  std::size_t append(const std::array<double, 3>& p)
+  {
+    if(m_soup.points.size() >= 0x7fffffffu)
+      throw Io_error("more than 2^31 - 1 distinct vertices: beyond lapmesh's index range");
+    m_soup.points.push_back(p);
+    return m_soup.points.size() - 1;
+  }
+  void grow()
+  {
+    m_slots.assign(2 * m_slots.size(), empty_slot);
+    const std::size_t mask = m_slots.size() - 1;
+    for(std::size_t i = 0; i < m_soup.points.size(); ++i) {
+      const auto& p = m_soup.points[i];
+      if(std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) continue;
+      std::size_t s = hash(p) & mask;
+      while(m_slots[s] != empty_slot) s = (s + 1) & mask;
+      m_slots[s] = std::uint32_t(i);
+    }
+  }
   Polygon_soup& m_soup;
-  std::unordered_map<std::array<double, 3>, std::size_t, Hash> m_index;
+  std::vector<std::uint32_t> m_slots;
+  std::size_t m_probes = 0;
 };
 
 inline Polygon_soup parse_stl_binary(std::string_view data, std::size_t triangles)
 {
   Polygon_soup soup;
   soup.polygons.reserve(triangles);
-  Stl_vertex_merger merge(soup);
+  Stl_vertex_merger merge(soup, triangles / 2 + 2);  // a closed surface's vertex count
   const unsigned char* b = reinterpret_cast<const unsigned char*>(data.data()) + 84;
   for(std::size_t f = 0; f < triangles; ++f, b += 50) {
     std::vector<std::size_t> poly(3);
@@ -684,10 +738,11 @@ inline Polygon_soup parse_stl_ascii(std::string_view data)
   Text_reader r(data, false);
   Polygon_soup soup;
   Stl_vertex_merger merge(soup);
-  auto expect = [&r](std::string_view word, const std::string& where) {
+  auto expect = [&r](std::string_view word, const auto& where) {
     const std::string_view t = r.any_token();
     if(t != word)
-      r.fail(where + ": expected '" + std::string(word) + "', found " + (t.empty() ? "the end of the file" : excerpt(t)));
+      r.fail(message_text(where) + ": expected '" + std::string(word) + "', found " +
+             (t.empty() ? "the end of the file" : excerpt(t)));
   };
   std::string_view t = r.any_token();
   if(t != "solid") r.fail("missing 'solid' keyword (found " + excerpt(t) + ")");
@@ -702,13 +757,15 @@ inline Polygon_soup parse_stl_ascii(std::string_view data)
       r.skip_rest_of_line();
       continue;
     }
-    const std::string where = "facet " + std::to_string(soup.polygons.size());
-    if(t != "facet") r.fail(where + ": expected 'facet' or 'endsolid', found " + (t.empty() ? "the end of the file" : excerpt(t)));
+    const std::size_t facet = soup.polygons.size();
+    const auto where = [facet] { return "facet " + std::to_string(facet); };
+    if(t != "facet")
+      r.fail(where() + ": expected 'facet' or 'endsolid', found " + (t.empty() ? "the end of the file" : excerpt(t)));
     expect("normal", where);
     for(int c = 0; c < 3; ++c) {
       double ignored;
       const std::string_view n = r.any_token();
-      if(!parse_double(n, ignored)) r.fail(where + ": bad normal component " + excerpt(n));
+      if(!parse_double(n, ignored)) r.fail(where() + ": bad normal component " + excerpt(n));
     }
     expect("outer", where);
     expect("loop", where);
@@ -718,11 +775,11 @@ inline Polygon_soup parse_stl_ascii(std::string_view data)
       std::array<double, 3> p;
       for(int c = 0; c < 3; ++c) {
         const std::string_view x = r.any_token();
-        if(!parse_double(x, p[std::size_t(c)])) r.fail(where + ": bad coordinate " + excerpt(x));
+        if(!parse_double(x, p[std::size_t(c)])) r.fail(where() + ": bad coordinate " + excerpt(x));
       }
       poly[std::size_t(v)] = merge.index_of(p);
     }
-    expect("endloop", where + " (a facet has three vertices)");
+    expect("endloop", [&] { return where() + " (a facet has three vertices)"; });
     expect("endfacet", where);
     soup.polygons.push_back(std::move(poly));
   }
