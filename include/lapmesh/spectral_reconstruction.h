@@ -178,10 +178,15 @@ public:
 
   /// @brief true when lambda_{k-1} and lambda_k agree to 1e-8 relative: the reconstruction
   /// from k vectors then depends on the basis chosen inside that eigenspace.
+  ///
+  /// The solver ends the held set at a spectral gap, or, when the eigenspace of lambda_{k-1}
+  /// for the k asked for reaches past what a run computed (a value repeated very often, as on
+  /// a mesh of many identical parts), one value past lambda_{k-1}. k = size() is then taken
+  /// to end at a gap.
   bool splits_eigenspace(Eigen::Index k) const
   {
     check_k(k);
-    if(k >= size()) return false;  // the solver ends the held set at a spectral gap
+    if(k >= size()) return false;
     const double a = m_values[k - 1], b = m_values[k];
     const double floor = 1e-10 * std::abs(m_values[size() - 1]);
     return std::abs(b - a) <= 1e-8 * std::max(std::abs(a), std::abs(b)) + floor;

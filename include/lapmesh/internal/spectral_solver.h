@@ -428,6 +428,9 @@ inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::Vect
 }
 #endif
 
+/// The block size of a block Lanczos run for m pairs, unless the options set one.
+inline Eigen::Index default_block_size(Eigen::Index m) { return m < 60 ? 4 : 8; }
+
 /// One block Lanczos run for m pairs with the factor of K = -S - sigma M.
 template <typename Factor>
 Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
@@ -435,7 +438,7 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
 {
   const Eigen::Index n = sqrt_mass.size();
   Block_lanczos_options bo;
-  bo.block_size = opt.block_size > 0 ? opt.block_size : (m < 60 ? 4 : 8);
+  bo.block_size = opt.block_size > 0 ? opt.block_size : default_block_size(m);
   bo.tolerance = opt.tolerance;
   bo.max_restarts = opt.max_restarts;
   // A smaller basis than Spectra's: for large k the re-orthogonalisation it saves outweighs the
@@ -473,6 +476,23 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
   for(Eigen::Index j = k - 1; j + 1 < v.size(); ++j)
     if(v[j + 1] - v[j] > 1e-6 * std::max(std::abs(v[j + 1]), 1e-6 * scale)) return j;
   return -1;
+}
+
+/// How close to lambda_{count-1}, relative, its eigenspace must lie for a partial one to be
+/// accepted (leading_values_are_complete()).
+constexpr double partial_eigenspace_margin = 1e-9;
+
+/// Whether `count` values found, the largest `top`, are the `count` smallest eigenvalues when
+/// the eigenspace of `top` reaches past the values found: a value repeated more often than a
+/// run holds (a mesh of many identical parts). `found_below(tau)` counts the values found below
+/// tau, `below(tau)` the eigenvalues (exactly, by inertia). None below top's eigenspace may have
+/// been missed, and at least `count` must lie up to it; each of the values is then within the
+/// margin of its eigenvalue.
+template <typename FoundBelow, typename Below>
+bool leading_values_are_complete(double top, Eigen::Index count, const FoundBelow& found_below, const Below& below)
+{
+  const double d = partial_eigenspace_margin * std::abs(top);
+  return d > 0 && below(top - d) == found_below(top - d) && below(top + d) >= count;
 }
 
 
@@ -642,6 +662,23 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       if(cut_at >= 0) break;
     }
     if(cut_at < 0) {  // the new values up to the edge are one cluster: widen past it
+      // Unless they reach k + 1 (one past the k asked for: see the single run) and the counts show
+      // that none below them was missed.
+      const Eigen::Index wanted = k + 1 - accepted;
+      if(wanted > 0 && top - first_new >= wanted) {
+        const auto found_below = [&](double tau) {
+          const Eigen::Index held = Eigen::Index(std::lower_bound(values.begin(), values.end(), tau) - values.begin());
+          const double* v = F.values.data() + first_new;
+          return held + Eigen::Index(std::lower_bound(v, v + wanted, tau) - v);
+        };
+        if(leading_values_are_complete(F.values[first_new + wanted - 1], k + 1, found_below, factor_at)) {
+          for(Eigen::Index j = first_new; j < first_new + wanted; ++j) {
+            values.push_back(F.values[j]);
+            vectors.push_back(F.vectors.col(j));
+          }
+          break;
+        }
+      }
       retry(true, "no spectral gap above " + std::to_string(u) + " inside the window");
       continue;
     }
@@ -667,7 +704,8 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     attempt = 0;  // a window widened for a cluster is kept: a sphere's clusters grow with lambda
   }
   Spectral_pairs out;
-  // Every band ends at a gap: the held set holds whole clusters.
+  // Every band ends at a gap, and the held set holds whole clusters, but the last band when it
+  // ends one value past lambda_{k-1}'s eigenspace, found to reach past the window.
   const Eigen::Index keep = Eigen::Index(values.size());
   out.values = Eigen::Map<Eigen::VectorXd>(values.data(), keep);
   out.vectors.resize(n, keep);
@@ -720,11 +758,15 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
     if(opt.progress) report("lanczos", ops);
   };
   bool factor_overwritten = false;
+  Spectral_options run_opt = opt;
   for(;; ++attempt) {
     // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
     const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
-    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, opt, on_op)
-                                 : lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op);
+    // A block of b vectors finds at most b copies of an exactly repeated eigenvalue (in exact
+    // arithmetic): a retry doubles the default block as well as the extra pairs.
+    if(opt.block_size <= 0) run_opt.block_size = int(default_block_size(m) << (attempt - 1));
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
+                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op);
     if(c > 0) null_space.prepend_null_space(pairs, mass);
     total_ops += pairs.operations;
     pairs.operations = total_ops;
@@ -746,6 +788,22 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       if(below < j + 1)
         throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(below) +
                               " below tau, " + std::to_string(j + 1) + " computed)");
+    } else if(pairs.values.size() > k) {
+      // The eigenspace of lambda_{k-1} reaches past the computed pairs. Its computed members
+      // stand for the rest once the counts show that none below it was missed. k + 1 are held,
+      // so that splits_eigenspace(k) sees the split.
+      report("checking completeness", total_ops);
+      if(!counter) counter.emplace(factor, stiffness, mass);
+      const double* v = pairs.values.data();
+      const auto found_below = [&](double tau) { return Eigen::Index(std::lower_bound(v, v + k + 1, tau) - v); };
+      const bool complete =
+        leading_values_are_complete(v[k], k + 1, found_below, [&](double tau) { return counter->below(tau); });
+      factor_overwritten = counter->overwrites_factor();
+      if(complete) {
+        pairs.values.conservativeResize(k + 1);
+        pairs.vectors.conservativeResize(Eigen::NoChange, k + 1);
+        return pairs;
+      }
     }
     // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
     // the computed pairs: ask for more.
