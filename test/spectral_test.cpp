@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 using namespace lapmesh_test;
@@ -34,6 +35,53 @@ double m_orthonormality_error(const lapmesh::Spectral_basis& b)
 {
   const Eigen::MatrixXd G = b.eigenvectors().transpose() * b.mass().asDiagonal() * b.eigenvectors();
   return (G - Eigen::MatrixXd::Identity(G.rows(), G.cols())).cwiseAbs().maxCoeff();
+}
+
+/// All eigenvalues of the pencil, ascending, by a dense solve.
+Eigen::VectorXd dense_eigenvalues(const lapmesh::Laplacian_pencil& pencil)
+{
+  const Eigen::MatrixXd Md = Eigen::VectorXd(pencil.mass).asDiagonal();
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> dense(-Eigen::MatrixXd(pencil.stiffness), Md,
+                                                                        Eigen::EigenvaluesOnly);
+  EXPECT_EQ(dense.info(), Eigen::Success);
+  return dense.eigenvalues();
+}
+
+/// Every held pair against the dense eigenvalues: M-orthonormal vectors, each value to 1e-8
+/// and each residual small against max(lambda, residual_scale).
+void expect_pairs_match(const lapmesh::Laplacian_pencil& pencil, const lapmesh::Spectral_basis& b,
+                        const Eigen::VectorXd& exact, double residual_scale, const std::string& what)
+{
+  EXPECT_LT(m_orthonormality_error(b), 1e-8) << what;
+  const Eigen::VectorXd& lambda = b.eigenvalues();
+  const Eigen::MatrixXd& Phi = b.eigenvectors();
+  for(Eigen::Index j = 0; j < b.size(); ++j) {
+    EXPECT_NEAR(lambda[j], exact[j], 1e-8 * (1 + exact[j])) << what << " " << j;
+    const Eigen::VectorXd MPhi = pencil.mass.cwiseProduct(Phi.col(j));
+    const Eigen::VectorXd r = -(pencil.stiffness * Phi.col(j)) - lambda[j] * MPhi;
+    EXPECT_LT(r.norm(), 1e-7 * std::max(lambda[j], residual_scale) * MPhi.norm()) << what << " " << j;
+  }
+}
+
+/// The options of the solver named "block" (the default), "spectra" or "bands" (of 8 pairs or more).
+lapmesh::Spectral_options solver_options(const std::string& solver)
+{
+  lapmesh::Spectral_options opt;
+  if(solver == "spectra") opt.method = lapmesh::Krylov_method::spectra;
+  if(solver == "bands") opt.band_size = 8;
+  return opt;
+}
+
+/// The k smallest pairs of the pencil, or a test failure naming `what` and none.
+std::optional<lapmesh::Spectral_basis> basis_or_failure(const lapmesh::Laplacian_pencil& pencil, Eigen::Index k,
+                                                        const lapmesh::Spectral_options& opt, const std::string& what)
+{
+  try {
+    return lapmesh::Spectral_basis::from_pencil(pencil, k, opt);
+  } catch(const lapmesh::Numerical_error& e) {
+    ADD_FAILURE() << what << ": " << e.what();
+    return std::nullopt;
+  }
 }
 
 const lapmesh::Spectral_basis& sphere_basis()
@@ -433,17 +481,14 @@ TEST(Spectral, HighMultiplicitiesAgreeWithDenseSolve)
     const Mesh m = to_mesh(std::string(which) == "icosphere" ? lapmesh::icosphere(3, 1.0) : lapmesh::bumpy_sphere(3));
     const auto pencil = lapmesh::laplacian_pencil(m);
     const Eigen::Index n = pencil.mass.size(), k = n - 42;
-    const Eigen::MatrixXd Md = Eigen::VectorXd(pencil.mass).asDiagonal();
-    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> dense(-Eigen::MatrixXd(pencil.stiffness), Md,
-                                                                          Eigen::EigenvaluesOnly);
-    ASSERT_EQ(dense.info(), Eigen::Success);
+    const Eigen::VectorXd exact = dense_eigenvalues(pencil);
     lapmesh::Spectral_options banded;
     banded.band_size = 40;
     banded.dense_limit = 0;
     const auto b = lapmesh::Spectral_basis::from_pencil(pencil, k, banded);
     ASSERT_GE(b.size(), k) << which;
     for(Eigen::Index j = 0; j < b.size(); ++j)
-      EXPECT_NEAR(b.eigenvalues()[j], dense.eigenvalues()[j], 1e-8 * (1 + dense.eigenvalues()[j])) << which << " " << j;
+      EXPECT_NEAR(b.eigenvalues()[j], exact[j], 1e-8 * (1 + exact[j])) << which << " " << j;
     expect_verified_spectrum(pencil, b, k, which);
   }
 }
@@ -501,39 +546,20 @@ TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
     const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lap));
     const Eigen::Index n = pencil.mass.size();
     ASSERT_EQ(n, 27 * 4 + 3 * 162);
-    const Eigen::MatrixXd Md = Eigen::VectorXd(pencil.mass).asDiagonal();
-    const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> dense(-Eigen::MatrixXd(pencil.stiffness), Md,
-                                                                          Eigen::EigenvaluesOnly);
-    ASSERT_EQ(dense.info(), Eigen::Success);
-    const Eigen::VectorXd& exact = dense.eigenvalues();
+    const Eigen::VectorXd exact = dense_eigenvalues(pencil);
     ASSERT_LT(std::abs(exact[c - 1]), 1e-9 * exact[c]);  // the null space has dimension c
     for(const char* solver : {"block", "spectra", "bands"})
       for(Eigen::Index k : {1, 10, 30, 40}) {
         const std::string what = std::string(lap == lapmesh::Laplacian::uniform ? "uniform " : "cotangent ") + solver +
                                  " k=" + std::to_string(k);
-        lapmesh::Spectral_options opt;
-        if(std::string(solver) == "spectra") opt.method = lapmesh::Krylov_method::spectra;
-        if(std::string(solver) == "bands") opt.band_size = 8;  // k > 8: bands of 8 pairs or more
-        lapmesh::Spectral_basis b;
-        try {
-          b = lapmesh::Spectral_basis::from_pencil(pencil, k, opt);
-        } catch(const lapmesh::Numerical_error& e) {
-          ADD_FAILURE() << what << ": " << e.what();
-          continue;
-        }
+        const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
+        if(!computed) continue;
+        const lapmesh::Spectral_basis& b = *computed;
         if(b.size() < std::max(k, c)) {
           ADD_FAILURE() << what << ": " << b.size() << " pairs held, the null space has dimension " << c;
           continue;
         }
-        EXPECT_LT(m_orthonormality_error(b), 1e-8) << what;
-        const Eigen::VectorXd& lambda = b.eigenvalues();
-        const Eigen::MatrixXd& Phi = b.eigenvectors();
-        for(Eigen::Index j = 0; j < b.size(); ++j) {
-          EXPECT_NEAR(lambda[j], exact[j], 1e-8 * (1 + exact[j])) << what << " " << j;
-          const Eigen::VectorXd MPhi = pencil.mass.cwiseProduct(Phi.col(j));
-          const Eigen::VectorXd r = -(pencil.stiffness * Phi.col(j)) - lambda[j] * MPhi;
-          EXPECT_LT(r.norm(), 1e-7 * std::max(lambda[j], exact[c]) * MPhi.norm()) << what << " " << j;
-        }
+        expect_pairs_match(pencil, b, exact, exact[c], what);
         // The held set ends at a gap, with exactly as many eigenvalues below it (inertia), or
         // one past lambda_{k-1} inside its eigenspace, none missed below it.
         const Eigen::Index h = b.size();
@@ -568,36 +594,18 @@ TEST(Spectral, AValueRepeatedMoreOftenThanARunHoldsIsSplitWhereItMustBe)
   const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
   const Eigen::Index n = pencil.mass.size();
   ASSERT_EQ(n, 30 * 42);
-  const Eigen::MatrixXd Md = Eigen::VectorXd(pencil.mass).asDiagonal();
-  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> dense(-Eigen::MatrixXd(pencil.stiffness), Md,
-                                                                        Eigen::EigenvaluesOnly);
-  ASSERT_EQ(dense.info(), Eigen::Success);
-  const Eigen::VectorXd& exact = dense.eigenvalues();
+  const Eigen::VectorXd exact = dense_eigenvalues(pencil);
   ASSERT_LT(exact[119] - exact[30], 1e-10 * exact[30]);  // 90 copies of one value
   ASSERT_LT(exact[269] - exact[120], 1e-10 * exact[120]);
   ASSERT_GT(exact[120] - exact[119], 0.1 * exact[120]);
   for(const char* solver : {"block", "bands"})
     for(Eigen::Index k : {35, 120, 150}) {
       const std::string what = std::string(solver) + " k=" + std::to_string(k);
-      lapmesh::Spectral_options opt;
-      if(std::string(solver) == "bands") opt.band_size = 8;
-      lapmesh::Spectral_basis b;
-      try {
-        b = lapmesh::Spectral_basis::from_pencil(pencil, k, opt);
-      } catch(const lapmesh::Numerical_error& e) {
-        ADD_FAILURE() << what << ": " << e.what();
-        continue;
-      }
+      const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
+      if(!computed) continue;
+      const lapmesh::Spectral_basis& b = *computed;
       ASSERT_GE(b.size(), k) << what;
-      EXPECT_LT(m_orthonormality_error(b), 1e-8) << what;
-      const Eigen::VectorXd& lambda = b.eigenvalues();
-      const Eigen::MatrixXd& Phi = b.eigenvectors();
-      for(Eigen::Index j = 0; j < b.size(); ++j) {
-        EXPECT_NEAR(lambda[j], exact[j], 1e-8 * (1 + exact[j])) << what << " " << j;
-        const Eigen::VectorXd MPhi = pencil.mass.cwiseProduct(Phi.col(j));
-        const Eigen::VectorXd r = -(pencil.stiffness * Phi.col(j)) - lambda[j] * MPhi;
-        EXPECT_LT(r.norm(), 1e-7 * std::max(lambda[j], exact[30]) * MPhi.norm()) << what << " " << j;
-      }
+      expect_pairs_match(pencil, b, exact, exact[30], what);
       EXPECT_EQ(b.splits_eigenspace(k), k != 120) << what;
     }
 }
