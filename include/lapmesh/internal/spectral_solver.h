@@ -431,6 +431,17 @@ inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::Vect
 /// The block size of a block Lanczos run for m pairs, unless the options set one.
 inline Eigen::Index default_block_size(Eigen::Index m) { return m < 60 ? 4 : 8; }
 
+/// The most copies of one value (equal to 1e-8 relative) among v[from..].
+inline Eigen::Index largest_multiplicity(const Eigen::VectorXd& v, Eigen::Index from)
+{
+  Eigen::Index largest = 0;
+  for(Eigen::Index j = from, run = 0; j < v.size(); ++j) {
+    run = j > from && v[j] - v[j - 1] <= 1e-8 * std::abs(v[j]) ? run + 1 : 1;
+    largest = std::max(largest, run);
+  }
+  return largest;
+}
+
 /// One block Lanczos run for m pairs with the factor of K = -S - sigma M.
 template <typename Factor>
 Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
@@ -759,12 +770,14 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
   };
   bool factor_overwritten = false;
   Spectral_options run_opt = opt;
+  Eigen::Index block = 0;
   for(;; ++attempt) {
     // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
     const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
-    // A block of b vectors finds at most b copies of an exactly repeated eigenvalue (in exact
-    // arithmetic): a retry doubles the default block as well as the extra pairs.
-    if(opt.block_size <= 0) run_opt.block_size = int(default_block_size(m) << (attempt - 1));
+    if(opt.block_size <= 0) {
+      block = std::max(block, default_block_size(m));
+      run_opt.block_size = int(block);
+    }
     Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
                                  : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op);
     if(c > 0) null_space.prepend_null_space(pairs, mass);
@@ -788,10 +801,11 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       if(below < j + 1)
         throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(below) +
                               " below tau, " + std::to_string(j + 1) + " computed)");
-    } else if(pairs.values.size() > k) {
-      // The eigenspace of lambda_{k-1} reaches past the computed pairs. Its computed members
-      // stand for the rest once the counts show that none below it was missed. k + 1 are held,
-      // so that splits_eigenspace(k) sees the split.
+    }
+    if(pairs.values.size() > k) {
+      // The eigenspace of lambda_{k-1} has more members than the run found, or reaches past
+      // the computed pairs. Its computed members stand for the rest once the counts show that
+      // none below it was missed. k + 1 are held, so that splits_eigenspace(k) sees the split.
       report("checking completeness", total_ops);
       if(!counter) counter.emplace(factor, stiffness, mass);
       const double* v = pairs.values.data();
@@ -812,6 +826,9 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
                             " smallest eigenpairs (repeated eigenvalues missed after " + std::to_string(attempt) +
                             " attempts)");
     extra = 2 * extra + 4;
+    // A block of b vectors finds at most b copies of an exactly repeated eigenvalue (in exact
+    // arithmetic): b copies of one value suggest that there are more, and a larger block.
+    if(opt.block_size <= 0 && largest_multiplicity(pairs.values, c) >= block) block *= 2;
     if(factor_overwritten) {  // the check used the factor's memory: factorise again (same analysis)
       report("factorising", total_ops);
       K = shifted_pencil(stiffness, mass, sigma);
