@@ -647,7 +647,7 @@ public:
   }
   std::size_t index_of(const std::array<double, 3>& p)
   {
-    if(std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) return append(p);
+    if(has_nan(p)) return append(p);
     if(2 * (m_soup.points.size() + 1) > m_slots.size()) grow();
     const std::size_t mask = m_slots.size() - 1;
     for(std::size_t s = hash(p) & mask;; s = (s + 1) & mask) {
@@ -665,6 +665,7 @@ public:
 
 private:
   static constexpr std::uint32_t empty_slot = 0xffffffffu;
+  static bool has_nan(const std::array<double, 3>& p) { return std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2]); }
   static std::uint64_t mix(std::uint64_t x)
   {
     x ^= x >> 30;
@@ -697,7 +698,7 @@ private:
     const std::size_t mask = m_slots.size() - 1;
     for(std::size_t i = 0; i < m_soup.points.size(); ++i) {
       const auto& p = m_soup.points[i];
-      if(std::isnan(p[0]) || std::isnan(p[1]) || std::isnan(p[2])) continue;
+      if(has_nan(p)) continue;
       std::size_t s = hash(p) & mask;
       while(m_slots[s] != empty_slot) s = (s + 1) & mask;
       m_slots[s] = std::uint32_t(i);

@@ -647,6 +647,12 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     }
     ops_total += F.operations;
     const Eigen::Index m = F.values.size();
+    const auto hold = [&](Eigen::Index begin, Eigen::Index end) {
+      for(Eigen::Index j = begin; j < end; ++j) {
+        values.push_back(F.values[j]);
+        vectors.push_back(F.vectors.col(j));
+      }
+    };
 #ifdef LAPMESH_DEBUG_BANDS
     std::fprintf(stderr, "band %d attempt %d window %ld sigma %.9g u %.9g found [%.9g, %.9g]\n", band, attempt,
                  long(window), sigma, u, F.values[0], F.values[m - 1]);
@@ -683,10 +689,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
           return held + Eigen::Index(std::lower_bound(v, v + wanted, tau) - v);
         };
         if(leading_values_are_complete(F.values[first_new + wanted - 1], k + 1, found_below, factor_at)) {
-          for(Eigen::Index j = first_new; j < first_new + wanted; ++j) {
-            values.push_back(F.values[j]);
-            vectors.push_back(F.vectors.col(j));
-          }
+          hold(first_new, first_new + wanted);
           break;
         }
       }
@@ -705,10 +708,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
                     std::to_string(accepted + added) + " found");
       continue;
     }
-    for(Eigen::Index j = first_new; j < cut_at; ++j) {
-      values.push_back(F.values[j]);
-      vectors.push_back(F.vectors.col(j));
-    }
+    hold(first_new, cut_at);
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
     u = cut;
     ++band;
@@ -786,18 +786,24 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
     pairs.attempts = attempt;
     if(!opt.check_completeness) return pairs;
 
+    // The eigenvalues below tau, by inertia; the counter is made at the run's first check.
+    bool checking = false;
+    const auto count_below = [&](double tau) {
+      if(!checking) report("checking completeness", total_ops);
+      checking = true;
+      if(!counter) counter.emplace(factor, stiffness, mass);
+      factor_overwritten = counter->overwrites_factor();
+      return counter->below(tau);
+    };
+    const auto first_pairs = [&](Eigen::Index count) {
+      pairs.values.conservativeResize(count);
+      pairs.vectors.conservativeResize(Eigen::NoChange, count);
+      return std::move(pairs);
+    };
     const Eigen::Index j = cluster_end(pairs.values, k);
     if(j >= 0) {
-      report("checking completeness", total_ops);
-      const double tau = 0.5 * (pairs.values[j] + pairs.values[j + 1]);
-      if(!counter) counter.emplace(factor, stiffness, mass);
-      const Eigen::Index below = counter->below(tau);
-      factor_overwritten = counter->overwrites_factor();
-      if(below == j + 1) {
-        pairs.values.conservativeResize(j + 1);
-        pairs.vectors.conservativeResize(Eigen::NoChange, j + 1);
-        return pairs;
-      }
+      const Eigen::Index below = count_below(0.5 * (pairs.values[j] + pairs.values[j + 1]));
+      if(below == j + 1) return first_pairs(j + 1);
       if(below < j + 1)
         throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(below) +
                               " below tau, " + std::to_string(j + 1) + " computed)");
@@ -806,18 +812,9 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       // The eigenspace of lambda_{k-1} has more members than the run found, or reaches past
       // the computed pairs. Its computed members stand for the rest once the counts show that
       // none below it was missed. k + 1 are held, so that splits_eigenspace(k) sees the split.
-      report("checking completeness", total_ops);
-      if(!counter) counter.emplace(factor, stiffness, mass);
       const double* v = pairs.values.data();
       const auto found_below = [&](double tau) { return Eigen::Index(std::lower_bound(v, v + k + 1, tau) - v); };
-      const bool complete =
-        leading_values_are_complete(v[k], k + 1, found_below, [&](double tau) { return counter->below(tau); });
-      factor_overwritten = counter->overwrites_factor();
-      if(complete) {
-        pairs.values.conservativeResize(k + 1);
-        pairs.vectors.conservativeResize(Eigen::NoChange, k + 1);
-        return pairs;
-      }
+      if(leading_values_are_complete(v[k], k + 1, found_below, count_below)) return first_pairs(k + 1);
     }
     // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
     // the computed pairs: ask for more.
