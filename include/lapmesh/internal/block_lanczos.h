@@ -101,6 +101,11 @@ struct Block_lanczos_options
   int max_restarts = 1000;
   std::uint64_t seed = 0x5eed;   ///< of the random starting block (reproducible runs)
   bool by_magnitude = false;     ///< wanted: largest |theta| (interior shift-invert) instead of largest theta
+  /// Removes from a vector the part that the operator maps to zero (if it is known): the random
+  /// start and refill vectors then carry none of it. Otherwise, once the Krylov space of the rest
+  /// is exhausted (one value repeated in every part of a mesh of identical parts), those parts
+  /// come back as Ritz pairs of theta = 0 and zero residual, converged but not wanted.
+  std::function<void(Eigen::Ref<Eigen::VectorXd>)> remove_null_space;
 };
 
 struct Block_lanczos_result
@@ -137,6 +142,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   auto random_unit = [&](Eigen::Ref<Eigen::VectorXd> x) {
     // Uniform in [-1, 1) from the 53 high bits: the same start on every platform.
     for(Index i = 0; i < n; ++i) x[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
+    if(opt.remove_null_space) opt.remove_null_space(x);
   };
 
   // Orthonormalises W (n x b, already orthogonal to V[:, 0:filled]) into Q with W = Q R. `scale`
@@ -298,7 +304,7 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         if(restart >= opt.max_restarts)
           throw Numerical_error("block Lanczos: " + std::to_string(converged) + " of " + std::to_string(nev) +
                                 " eigenpairs converged after " + std::to_string(restart) +
-                                " restarts (tolerance " + std::to_string(opt.tolerance) + ")");
+                                " restarts (tolerance " + message_number(opt.tolerance) + ")");
         // Keep the wanted Ritz vectors and a third of the rest: the rest speeds up convergence of
         // the last wanted ones; the new room lets the Krylov space grow again.
         const Index keep = std::min(processed - b, std::max(nev, nev + (processed - nev) / 3));

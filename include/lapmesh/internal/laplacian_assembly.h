@@ -86,7 +86,7 @@ inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
   for(Eigen::Index i = 0; i < mass.size(); ++i)
     if(!(mass[i] > 0))
       throw Mesh_error("vertex " + std::to_string(i) + " has a non-positive " + to_string(area) +
-                         " area (" + std::to_string(mass[i]) +
+                         " area (" + message_number(mass[i]) +
                          "); the mass matrix must be positive: use the mixed or barycentric area",
                        Mesh_error::Element::vertex, i);
 }
@@ -109,7 +109,7 @@ Laplacian choose_laplacian(const NamedParameters& np)
 inline double checked_mollification(double factor, const char* parameter)
 {
   if(!(factor >= 0) || !std::isfinite(factor))
-    throw Parameter_error(parameter, "must be a finite number >= 0 (got " + std::to_string(factor) + ")", "1e-5");
+    throw Parameter_error(parameter, "must be a finite number >= 0 (got " + message_number(factor) + ")", "1e-5");
   return factor;
 }
 /// The mollification factor of the named parameters, checked.

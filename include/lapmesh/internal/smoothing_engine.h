@@ -117,7 +117,7 @@ inline void check_settings(const Smoothing_settings& s)
 {
   if(!(s.lambda > 0) || !std::isfinite(s.lambda))
     throw std::invalid_argument("the time step lambda must be a positive finite number (got " +
-                                std::to_string(s.lambda) + ")");
+                                message_number(s.lambda) + ")");
   if(s.iterations <= 0)
     throw std::invalid_argument("the number of iterations must be positive (got " + std::to_string(s.iterations) + ")");
 }

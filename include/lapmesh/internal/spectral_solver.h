@@ -160,6 +160,15 @@ public:
     sums.array().colwise() /= m_mass.array();
     for(Eigen::Index v = 0; v < U.rows(); ++v) U.row(v) -= sums.row(m_component[v]);
   }
+  /// x <- x - q_C (q_C^T x) for every component C, q_C = M^(1/2) 1_C / sqrt(m_C): the null
+  /// space removed from a vector of the Krylov runs' symmetric form, x = M^(1/2) u.
+  void remove_from_symmetric_form(Eigen::Ref<Eigen::VectorXd> x, const Eigen::VectorXd& sqrt_mass) const
+  {
+    Eigen::VectorXd sums = Eigen::VectorXd::Zero(count());
+    for(Eigen::Index v = 0; v < x.size(); ++v) sums[m_component[v]] += sqrt_mass[v] * x[v];
+    sums.array() /= m_mass.array();
+    for(Eigen::Index v = 0; v < x.size(); ++v) x[v] -= sqrt_mass[v] * sums[m_component[v]];
+  }
   /// The null space's M-orthonormal basis: column C is 1_C / sqrt(m_C).
   Eigen::MatrixXd null_vectors() const
   {
@@ -207,12 +216,25 @@ public:
     m_deflation.remove_means(u, m_mass);
     return u;
   }
+  const Null_space_deflation& deflation() const { return m_deflation; }
 
 private:
   const Factor& m_factor;
   const Null_space_deflation& m_deflation;
   const Eigen::VectorXd& m_mass;
 };
+
+/// The null space a Krylov run's operator removes: none for a plain factor.
+template <typename Factor>
+const Null_space_deflation* deflation_of(const Factor&)
+{
+  return nullptr;
+}
+template <typename Factor>
+const Null_space_deflation* deflation_of(const Deflated_solve<Factor>& solve)
+{
+  return &solve.deflation();
+}
 
 /// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
 /// permutation: the completeness check factorises a matrix of the same pattern with it, which
@@ -226,7 +248,7 @@ inline Fill_permutation fill_permutation(const Eigen::SimplicialLLT<Eigen::Spars
 inline void throw_inertia_failure(double tau)
 {
   throw Numerical_error("spectral completeness check: the LDL^T factorisation of -S - tau M failed (tau = " +
-                        std::to_string(tau) + ")");
+                        message_number(tau) + ")");
 }
 
 /// K = -S - sigma M, a matrix of its own. The solver's stages take S itself: a negated copy held
@@ -397,12 +419,20 @@ Spectral_pairs spectra_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
   const double ncv_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 2.0;
   const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(Eigen::Index(ncv_factor * double(m)) + 1, m + 20));
   Spectra::SymEigsShiftSolver<Spectral_shift_invert_op<Factor>> eigs(op, m, ncv, sigma);
-  eigs.init();
+  if(const Null_space_deflation* null_space = deflation_of(factor)) {
+    // Spectra's own random start would carry the null space (see block_lanczos_run()); its
+    // refills still may.
+    Eigen::VectorXd start = Eigen::VectorXd::LinSpaced(n, -1.0, 1.0).array().sin();
+    null_space->remove_from_symmetric_form(start, sqrt_mass);
+    eigs.init(start.data());
+  } else {
+    eigs.init();
+  }
   eigs.compute(Spectra::SortRule::LargestMagn, opt.max_restarts, opt.tolerance, Spectra::SortRule::SmallestAlge);
   if(eigs.info() != Spectra::CompInfo::Successful)
     throw Numerical_error("spectral solver: Lanczos did not converge to " + std::to_string(m) + " eigenpairs in " +
                           std::to_string(opt.max_restarts) + " restarts (tolerance " +
-                          std::to_string(opt.tolerance) + "); raise number_of_iterations or the tolerance");
+                          message_number(opt.tolerance) + "); raise number_of_iterations or the tolerance");
   const Eigen::VectorXd vals = eigs.eigenvalues();
   if(vals.size() < m) throw Numerical_error("spectral solver: fewer converged eigenpairs than requested");
   Spectral_pairs out = ascending_pairs(vals, eigs.eigenvectors(), sqrt_mass);
@@ -457,6 +487,10 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 1.75;
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
+  if(const Null_space_deflation* null_space = deflation_of(factor))
+    bo.remove_null_space = [null_space, &sqrt_mass](Eigen::Ref<Eigen::VectorXd> x) {
+      null_space->remove_from_symmetric_form(x, sqrt_mass);
+    };
   Eigen::MatrixXd rhs;
   auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
     scaled_solve(factor, sqrt_mass, X, Y, rhs);
@@ -540,7 +574,7 @@ public:
 #endif
     if(!ok)
       throw Numerical_error("spectral solver: the LDL^T factorisation of -S - sigma M failed (sigma = " +
-                            std::to_string(sigma) + ")");
+                            message_number(sigma) + ")");
 #ifdef LAPMESH_HAS_CHOLMOD
     return m_ldlt->negative_pivots();
 #else
@@ -662,6 +696,12 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       sigma = u + 0.5 * (sigma - u);
       continue;
     }
+    // k inside the null space: the first band only verifies that no other eigenvalue lies below
+    // the complement's smallest.
+    if(band == 0 && accepted >= k && factor_at(0.5 * F.values[0]) == accepted) {
+      ++band;
+      break;
+    }
     // Krylov misses happen at the edge of the window: drop the top eighth. Cut at the widest
     // relative gap in the upper half of the new values that remain (wide gaps keep vectors of
     // neighbouring bands orthogonal), else at any gap above u.
@@ -693,7 +733,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
           break;
         }
       }
-      retry(true, "no spectral gap above " + std::to_string(u) + " inside the window");
+      retry(true, "no spectral gap above " + message_number(u) + " inside the window");
       continue;
     }
     const double cut = 0.5 * (F.values[cut_at - 1] + F.values[cut_at]);
@@ -704,7 +744,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     std::fprintf(stderr, "band %d cut %.9g below %ld expected %ld\n", band, cut, long(below), long(accepted + added));
 #endif
     if(below != accepted + added) {
-      retry(true, std::to_string(below) + " eigenvalues below " + std::to_string(cut) + ", " +
+      retry(true, std::to_string(below) + " eigenvalues below " + message_number(cut) + ", " +
                     std::to_string(accepted + added) + " found");
       continue;
     }
