@@ -6,7 +6,7 @@
 Per mesh STEM and task TASK it writes OUT_DIR/STEM.TASK.{csv,off} in the command line's
 formats (17 significant digits), for spectrum also STEM.spectrum.npz (the eigenpairs), atomically,
 then OUT_DIR/STEM.TASK.done (its summary row). A mesh that fails is recorded (status failed, the
-error message) and the others go on. A second run skips the meshes whose outputs and .done file
+error's type and message, without the file's path) and the others go on. A second run skips the meshes whose outputs and .done file
 exist, so a killed batch resumes where it stopped. The summary is OUT_DIR/summary-TASK.csv: mesh,
 vertices, faces, status, error, seconds, peak_mib (the peak resident memory of the process while
 it ran that mesh, in MiB: the kernel's high-water mark VmHWM, reset before the mesh through
@@ -248,7 +248,12 @@ def process(path, out_dir, task, options):
             else:
                 raise ValueError("unknown task %r" % task)
     except Exception as e:  # recorded, never stops the batch
-        row["status"], row["error"] = "failed", "%s: %s" % (type(e).__name__, e)
+        message = str(e)
+        # The mesh column names the file: the reader's "PATH: " would add only this machine's folders,
+        # and only to the errors found while reading.
+        if message.startswith(path + ": "):
+            message = message[len(path) + 2:]
+        row["status"], row["error"] = "failed", "%s: %s" % (type(e).__name__, message)
     row["seconds"] = round(time.perf_counter() - start, 6)
     row["peak_mib"] = _peak_mib()
     if row["status"] == "ok":

@@ -88,6 +88,7 @@ def test_dask_equals_serial(corpus40, tmp_path, task):
     assert sum(r["status"] == "ok" for r in dask) == len(chosen), [r for r in dask if r["status"] != "ok"]
     broken = dask[-1]
     assert broken["status"] == "failed" and "MeshError" in broken["error"] and "non-finite" in broken["error"]
+    assert broken["error"].startswith("MeshError: ") and folder not in broken["error"], broken["error"]
     summary = read_summary(tmp_path / "dask" / ("summary-%s.csv" % task))
     assert set(summary) == set(chosen) | {"zz_broken.off"}
     assert list(next(iter(summary.values()))) == list(batch.COLUMNS)
