@@ -84,6 +84,12 @@ std::optional<lapmesh::Spectral_basis> basis_or_failure(const lapmesh::Laplacian
   }
 }
 
+/// "uniform block k=10": the Laplacian, solver and k of a case, for failure messages.
+std::string case_label(lapmesh::Laplacian lap, const char* solver, Eigen::Index k)
+{
+  return std::string(lapmesh::to_string(lap)) + " " + solver + " k=" + std::to_string(k);
+}
+
 const lapmesh::Spectral_basis& sphere_basis()
 {
   static const lapmesh::Spectral_basis b =
@@ -550,8 +556,7 @@ TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
     ASSERT_LT(std::abs(exact[c - 1]), 1e-9 * exact[c]);  // the null space has dimension c
     for(const char* solver : {"block", "spectra", "bands"})
       for(Eigen::Index k : {1, 10, 30, 40}) {
-        const std::string what = std::string(lap == lapmesh::Laplacian::uniform ? "uniform " : "cotangent ") + solver +
-                                 " k=" + std::to_string(k);
+        const std::string what = case_label(lap, solver, k);
         const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
         if(!computed) continue;
         const lapmesh::Spectral_basis& b = *computed;
@@ -634,8 +639,7 @@ TEST(Spectral, PartsOfFewDistinctValuesGiveNoNullVectorsAsPairs)
     ASSERT_LT(exact[199] - exact[100], 1e-10 * exact[100]);  // at least 100 copies of one value
     for(const char* solver : {"block", "spectra", "bands"})
       for(Eigen::Index k : {3, 100, 101, 120}) {
-        const std::string what = std::string(lap == lapmesh::Laplacian::uniform ? "uniform " : "cotangent ") + solver +
-                                 " k=" + std::to_string(k);
+        const std::string what = case_label(lap, solver, k);
         const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
         if(!computed) continue;
         const lapmesh::Spectral_basis& b = *computed;
