@@ -147,27 +147,19 @@ public:
   /// their null-space loads (K = -S - sigma M maps null vectors onto M 1_C).
   void remove_loads(Eigen::Ref<Eigen::MatrixXd> B, const Eigen::VectorXd& mass) const
   {
-    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), B.cols());
-    for(Eigen::Index v = 0; v < B.rows(); ++v) sums.row(m_component[v]) += B.row(v);
-    sums.array().colwise() /= m_mass.array();
-    for(Eigen::Index v = 0; v < B.rows(); ++v) B.row(v) -= mass[v] * sums.row(m_component[v]);
+    subtract_component_sums(B, [](Eigen::Index) { return 1.0; }, [&](Eigen::Index v) { return mass[v]; });
   }
   /// U <- U - 1_C (1_C^T M U) / m_C for every component C: M-orthogonal to the null space.
   void remove_means(Eigen::Ref<Eigen::MatrixXd> U, const Eigen::VectorXd& mass) const
   {
-    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), U.cols());
-    for(Eigen::Index v = 0; v < U.rows(); ++v) sums.row(m_component[v]) += mass[v] * U.row(v);
-    sums.array().colwise() /= m_mass.array();
-    for(Eigen::Index v = 0; v < U.rows(); ++v) U.row(v) -= sums.row(m_component[v]);
+    subtract_component_sums(U, [&](Eigen::Index v) { return mass[v]; }, [](Eigen::Index) { return 1.0; });
   }
   /// x <- x - q_C (q_C^T x) for every component C, q_C = M^(1/2) 1_C / sqrt(m_C): the null
   /// space removed from a vector of the Krylov runs' symmetric form, x = M^(1/2) u.
   void remove_from_symmetric_form(Eigen::Ref<Eigen::VectorXd> x, const Eigen::VectorXd& sqrt_mass) const
   {
-    Eigen::VectorXd sums = Eigen::VectorXd::Zero(count());
-    for(Eigen::Index v = 0; v < x.size(); ++v) sums[m_component[v]] += sqrt_mass[v] * x[v];
-    sums.array() /= m_mass.array();
-    for(Eigen::Index v = 0; v < x.size(); ++v) x[v] -= sqrt_mass[v] * sums[m_component[v]];
+    const auto weight = [&](Eigen::Index v) { return sqrt_mass[v]; };
+    subtract_component_sums(Eigen::Map<Eigen::MatrixXd>(x.data(), x.size(), 1), weight, weight);
   }
   /// The null space's M-orthonormal basis: column C is 1_C / sqrt(m_C).
   Eigen::MatrixXd null_vectors() const
@@ -193,6 +185,17 @@ public:
   }
 
 private:
+  /// X <- X - diag(out) 1_C (1_C^T diag(in) X) / m_C for every component C, with the vertex
+  /// weights in(v) and out(v): the three projections above differ only in these.
+  template <typename In, typename Out>
+  void subtract_component_sums(Eigen::Ref<Eigen::MatrixXd> X, const In& in, const Out& out) const
+  {
+    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), X.cols());
+    for(Eigen::Index v = 0; v < X.rows(); ++v) sums.row(m_component[v]) += in(v) * X.row(v);
+    sums.array().colwise() /= m_mass.array();
+    for(Eigen::Index v = 0; v < X.rows(); ++v) X.row(v) -= out(v) * sums.row(m_component[v]);
+  }
+
   Eigen::VectorXi m_component;  // per vertex
   Eigen::VectorXd m_mass;       // per component: m_C = 1_C^T M 1_C
 };
