@@ -411,7 +411,8 @@ constexpr Sparse_cholesky default_sparse_cholesky =
 /// What the spectral solver is doing, for progress reports.
 struct Spectral_progress
 {
-  const char* stage;       ///< "factorising", "lanczos", "checking completeness"
+  const char* stage;       ///< "factorising", "lanczos", "checking completeness", "lanczos band",
+                           ///< "locating the crowded eigenvalues"
   long long operations;    ///< shift-invert solves so far (in the current attempt)
   int attempt;             ///< 1 for the first run; more after a completeness retry
   double elapsed_seconds;  ///< since the solve started

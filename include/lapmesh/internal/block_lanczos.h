@@ -106,6 +106,10 @@ struct Block_lanczos_options
   /// is exhausted (one value repeated in every part of a mesh of identical parts), those parts
   /// come back as Ritz pairs of theta = 0 and zero residual, converged but not wanted.
   std::function<void(Eigen::Ref<Eigen::VectorXd>)> remove_null_space;
+  /// Asked at every restart with the wanted Ritz values (in the order of `values` below) and the
+  /// number of restarts so far: true ends the run unconverged (a caller that sees the run will
+  /// not converge in reasonable time and knows a better operator).
+  std::function<bool(const Eigen::VectorXd& theta, int restart)> give_up;
 };
 
 struct Block_lanczos_result
@@ -115,6 +119,8 @@ struct Block_lanczos_result
   long long operations = 0;  ///< operator applications (vectors, not blocks)
   int restarts = 0;
   int rayleigh_ritz = 0;     ///< projected eigenproblems solved (convergence checks)
+  bool converged = true;     ///< false: given up (options' give_up); `values` are then the last
+                             ///< Ritz values and `vectors` is empty
 };
 
 /// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X, X a block of
@@ -301,6 +307,12 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       last_settled = settled;
       last_check = out.operations;
       if(basis_full) {  // thick restart
+        if(opt.give_up && opt.give_up(theta.head(nev), restart)) {
+          out.values = theta.head(nev);
+          out.restarts = restart;
+          out.converged = false;
+          return out;
+        }
         if(restart >= opt.max_restarts)
           throw Numerical_error("block Lanczos: " + std::to_string(converged) + " of " + std::to_string(nev) +
                                 " eigenpairs converged after " + std::to_string(restart) +

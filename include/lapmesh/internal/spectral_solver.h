@@ -14,7 +14,10 @@
 // Shift. sigma = -shift_factor / sum(M) (default shift_factor = 1e-2), i.e. slightly below
 // zero on the scale of the smallest non-zero eigenvalue (lambda_1 ~ 25 / area on a sphere-like
 // surface): K is then symmetric positive definite even on closed meshes, where -S is
-// singular, and the eigenvalues nearest to sigma are the smallest ones.
+// singular, and the eigenvalues nearest to sigma are the smallest ones. When the wanted ones
+// crowd together far above it (a dense band of distinct values), a first block Lanczos run is
+// given up after a few restarts, and a second runs from a shift just below the band, located by
+// inertia counts (Crowding_watch, reshifted_eigenpairs()).
 //
 // Completeness. Krylov solvers can drop a member of a repeated eigenvalue. The solver asks
 // for k + extra pairs, picks tau in the first spectral gap at or above lambda_{k-1}, and
@@ -98,14 +101,16 @@ private:
 
 /// The null space of -S on a mesh of several connected components (see "Null space" above):
 /// the components of the graph of S's non-zero off-diagonal entries, when there are at least
-/// two and every row of S sums to zero to round-off. Inactive (count() == 0) otherwise: a
-/// connected mesh, or a pencil whose stiffness is not a Laplacian (from_pencil accepts any).
+/// `min_components` and every row of S sums to zero to round-off. Inactive (count() == 0)
+/// otherwise: by default a connected mesh, or a pencil whose stiffness is not a Laplacian
+/// (from_pencil accepts any).
 class Null_space_deflation
 {
 public:
   Null_space_deflation() = default;
   /// `stiffness` is S (or -S: the components and the row sums do not depend on the sign).
-  Null_space_deflation(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass)
+  Null_space_deflation(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
+                       Eigen::Index min_components = 2)
   {
     const Eigen::Index n = stiffness.rows();
     std::vector<Eigen::Index> parent(static_cast<std::size_t>(n));
@@ -134,7 +139,7 @@ public:
       if(l < 0) l = c++;
       m_component[v] = int(l);
     }
-    if(c < 2) {
+    if(c < std::max<Eigen::Index>(min_components, 1)) {
       m_component.resize(0);
       return;
     }
@@ -475,10 +480,43 @@ inline Eigen::Index largest_multiplicity(const Eigen::VectorXd& v, Eigen::Index 
   return largest;
 }
 
-/// One block Lanczos run for m pairs with the factor of K = -S - sigma M.
+/// Watches a shift-invert run from below zero for wanted eigenvalues that crowd together far
+/// above the shift (a dense band of distinct values: many near-identical parts joined at one
+/// vertex). Seen from the shift they are then nearly equal, and Krylov convergence, which goes
+/// with their separation relative to their distance from the shift, nearly stops. A run that has
+/// not converged after `patience` restarts with such Ritz values is given up, and its Ritz values
+/// are kept as estimates for a run from a shift next to them (reshifted_eigenpairs()).
+struct Crowding_watch
+{
+  int patience = 10;          // restarts
+  double crowding = 1e-2;     // the wanted values' width over their distance from the shift
+  Eigen::VectorXd estimates;  // ascending; set when the run was given up
+};
+
+/// The first of the eigenvalue estimates `lambda` (ascending) beyond round-off from zero, relative
+/// to the last: the crowding measures leave out the null space of a connected mesh.
+inline Eigen::Index first_beyond_zero(const Eigen::VectorXd& lambda)
+{
+  const Eigen::Index last = lambda.size() - 1;
+  Eigen::Index first = 0;
+  while(first < last && std::abs(lambda[first]) <= 1e-6 * std::abs(lambda[last])) ++first;
+  return first;
+}
+
+/// Whether the eigenvalue estimates `lambda` (ascending) crowd as Crowding_watch describes.
+inline bool crowded_far_from_shift(const Eigen::VectorXd& lambda, double sigma, double crowding)
+{
+  const Eigen::Index last = lambda.size() - 1, first = first_beyond_zero(lambda);
+  const double distance = lambda[first] - sigma;
+  return first < last && distance > 0 && lambda[last] - lambda[first] < crowding * distance;
+}
+
+/// One block Lanczos run for m pairs with the factor of K = -S - sigma M. With a `watch`, a run
+/// that it gives up returns no pairs (and the watch's estimates).
 template <typename Factor>
 Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
-                                 const Spectral_options& opt, const std::function<void(long long)>& on_op)
+                                 const Spectral_options& opt, const std::function<void(long long)>& on_op,
+                                 Crowding_watch* watch = nullptr)
 {
   const Eigen::Index n = sqrt_mass.size();
   Block_lanczos_options bo;
@@ -494,12 +532,28 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
     bo.remove_null_space = [null_space, &sqrt_mass](Eigen::Ref<Eigen::VectorXd> x) {
       null_space->remove_from_symmetric_form(x, sqrt_mass);
     };
+  // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma.
+  const auto ascending_lambda = [sigma](const Eigen::VectorXd& theta) {
+    Eigen::VectorXd lambda = (1.0 / theta.array() + sigma).matrix();
+    std::sort(lambda.data(), lambda.data() + lambda.size());
+    return lambda;
+  };
+  if(watch)
+    bo.give_up = [&](const Eigen::VectorXd& theta, int restart) {
+      return restart >= watch->patience && crowded_far_from_shift(ascending_lambda(theta), sigma, watch->crowding);
+    };
   Eigen::MatrixXd rhs;
   auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
     scaled_solve(factor, sqrt_mass, X, Y, rhs);
   };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
-  // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma.
+  if(!r.converged) {
+    watch->estimates = ascending_lambda(r.values);
+    Spectral_pairs none;
+    none.operations = r.operations;
+    none.shift = sigma;
+    return none;
+  }
   const Eigen::VectorXd lambda = (1.0 / r.values.array() + sigma).matrix();
   Spectral_pairs out = ascending_pairs(lambda, std::move(r.vectors), sqrt_mass);
   out.operations = r.operations;
@@ -507,13 +561,14 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   return out;
 }
 
-/// One Krylov run for m pairs, by the method the options name.
+/// One Krylov run for m pairs, by the method the options name (a `watch` is for block Lanczos).
 template <typename Factor>
 Spectral_pairs lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
-                           const Spectral_options& opt, const std::function<void(long long)>& on_op)
+                           const Spectral_options& opt, const std::function<void(long long)>& on_op,
+                           Crowding_watch* watch = nullptr)
 {
   if(opt.method == Krylov_method::spectra) return spectra_run(factor, sqrt_mass, sigma, m, opt, on_op);
-  return block_lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op);
+  return block_lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op, watch);
 }
 
 /// The end of the cluster of lambda_{k-1}: the first j >= k-1 with a relative gap to
@@ -541,6 +596,32 @@ bool leading_values_are_complete(double top, Eigen::Index count, const FoundBelo
 {
   const double d = partial_eigenspace_margin * std::abs(top);
   return d > 0 && below(top - d) == found_below(top - d) && below(top + d) >= count;
+}
+
+/// How many of a run's pairs (`values` ascending, from the smallest eigenvalue on) are verified
+/// by the inertia counts `below(tau)` to be the smallest eigenvalues, k of them at least: whole
+/// eigenspaces up to lambda_{k-1}'s, or k + 1 when that eigenspace reaches past the values
+/// found (then splits_eigenspace(k) sees the split). 0: a value was missed, ask for more.
+template <typename Below>
+Eigen::Index verified_count(const Eigen::VectorXd& values, Eigen::Index k, const Below& below)
+{
+  const Eigen::Index j = cluster_end(values, k);
+  if(j >= 0) {
+    const Eigen::Index count = below(0.5 * (values[j] + values[j + 1]));
+    if(count == j + 1) return j + 1;
+    if(count < j + 1)
+      throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(count) +
+                            " below tau, " + std::to_string(j + 1) + " computed)");
+  }
+  if(values.size() > k) {
+    // The eigenspace of lambda_{k-1} has more members than the run found, or reaches past the
+    // computed pairs: its computed members stand for the rest once the counts show that none
+    // below it was missed.
+    const double* v = values.data();
+    const auto found_below = [&](double tau) { return Eigen::Index(std::lower_bound(v, v + k + 1, tau) - v); };
+    if(leading_values_are_complete(v[k], k + 1, found_below, below)) return k + 1;
+  }
+  return 0;
 }
 
 
@@ -770,9 +851,14 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
   return out;
 }
 
+/// The k smallest eigenpairs by one shift-invert Krylov run from below zero, repeated with more
+/// pairs until the inertia counts verify them. With `crowded`, a first block Lanczos run whose
+/// wanted values crowd far above the shift (Crowding_watch) is given up: the result then holds
+/// no pairs, and `crowded` the estimates.
 template <typename Factor>
 Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
-                                        Eigen::Index k, const Spectral_options& opt)
+                                        Eigen::Index k, const Spectral_options& opt,
+                                        Eigen::VectorXd* crowded = nullptr)
 {
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
@@ -821,8 +907,14 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       block = std::max(block, default_block_size(m));
       run_opt.block_size = int(block);
     }
-    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
-                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op);
+    Crowding_watch watch;
+    Crowding_watch* watching = attempt == 1 && crowded ? &watch : nullptr;
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, watching)
+                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op, watching);
+    if(watch.estimates.size() > 0) {
+      *crowded = std::move(watch.estimates);
+      return pairs;
+    }
     if(c > 0) null_space.prepend_null_space(pairs, mass);
     total_ops += pairs.operations;
     pairs.operations = total_ops;
@@ -838,26 +930,10 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       factor_overwritten = counter->overwrites_factor();
       return counter->below(tau);
     };
-    const auto first_pairs = [&](Eigen::Index count) {
-      pairs.values.conservativeResize(count);
-      pairs.vectors.conservativeResize(Eigen::NoChange, count);
-      return std::move(pairs);
-    };
-    const Eigen::Index j = cluster_end(pairs.values, k);
-    if(j >= 0) {
-      const Eigen::Index below = count_below(0.5 * (pairs.values[j] + pairs.values[j + 1]));
-      if(below == j + 1) return first_pairs(j + 1);
-      if(below < j + 1)
-        throw Numerical_error("spectral solver: inconsistent eigenvalue count (" + std::to_string(below) +
-                              " below tau, " + std::to_string(j + 1) + " computed)");
-    }
-    if(pairs.values.size() > k) {
-      // The eigenspace of lambda_{k-1} has more members than the run found, or reaches past
-      // the computed pairs. Its computed members stand for the rest once the counts show that
-      // none below it was missed. k + 1 are held, so that splits_eigenspace(k) sees the split.
-      const double* v = pairs.values.data();
-      const auto found_below = [&](double tau) { return Eigen::Index(std::lower_bound(v, v + k + 1, tau) - v); };
-      if(leading_values_are_complete(v[k], k + 1, found_below, count_below)) return first_pairs(k + 1);
+    if(const Eigen::Index keep = verified_count(pairs.values, k, count_below)) {
+      pairs.values.conservativeResize(keep);
+      pairs.vectors.conservativeResize(Eigen::NoChange, keep);
+      return pairs;
     }
     // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
     // the computed pairs: ask for more.
@@ -878,6 +954,141 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
       factor_overwritten = false;
     }
   }
+}
+
+/// A shift for the eigenvalues that a given-up run's `estimates` (ascending) locate roughly: c
+/// eigenvalues (the null space's) lie below it, and the smallest other one lies above it by less
+/// than a tenth of the wanted ones' width, so that they are well separated seen from it. Both
+/// the smallest non-null eigenvalue and the largest wanted one are bracketed by inertia counts
+/// (`ldlt.factorize_at()`) and bisected; the estimates, Ritz values, bound them from above.
+/// `sigma0` lies below every eigenvalue (where c == 0: a pencil with no known null space). None
+/// when the counts contradict the estimates: an eigenvalue far below them, or fewer than c
+/// eigenvalues at round-off from zero.
+inline std::optional<double> shift_below_crowded(Shifted_ldlt& ldlt, Eigen::Index c, const Eigen::VectorXd& estimates,
+                                                 double sigma0)
+{
+  const Eigen::Index last = estimates.size() - 1, first = first_beyond_zero(estimates);
+  const Eigen::Index target = c + (last - first + 1);  // eigenvalues up to the largest wanted
+  const double scale = std::abs(estimates[last]);
+  const double spread = std::max(estimates[last] - estimates[first], 1e-12 * scale);
+  // Brackets: c eigenvalues below a_lo, more below a_hi; fewer than `target` below b_lo, at least
+  // as many below b_hi.
+  double a_lo = estimates[first] - spread;
+  for(double step = spread;;) {
+    if(c == 0 && a_lo <= sigma0) {
+      a_lo = sigma0;
+      break;
+    }
+    if(c > 0 && a_lo <= 1e-3 * estimates[first]) a_lo = 1e-3 * estimates[first];  // clear of round-off at 0
+    const Eigen::Index count = ldlt.factorize_at(a_lo);
+    if(count == c) break;
+    if(count < c || a_lo == 1e-3 * estimates[first]) return std::nullopt;
+    step *= 4;  // an eigenvalue below the estimates
+    a_lo = estimates[first] - step;
+  }
+  double b_hi = estimates[last] + 1e-9 * scale;
+  for(double step = spread; ldlt.factorize_at(b_hi) < target; step *= 4) b_hi += step;
+  double a_hi = b_hi, b_lo = a_lo;
+  for(int i = 0; i < 200; ++i) {
+    const double width = b_lo - a_hi;  // the wanted values span at least this
+    const double resolution = 1e-13 * scale;
+    const bool a_done = a_hi - a_lo <= std::max(0.1 * width, resolution);
+    if(a_done || (a_hi - a_lo <= resolution && b_hi - b_lo <= resolution)) break;
+    // Bisect the a bracket, unless the b bracket is wider: the width is not yet known.
+    const bool split_a = a_hi - a_lo >= b_hi - b_lo;
+    const double mid = split_a ? 0.5 * (a_lo + a_hi) : 0.5 * (b_lo + b_hi);
+    const Eigen::Index count = ldlt.factorize_at(mid);
+    if(count < c) return std::nullopt;
+    if(count == c) a_lo = std::max(a_lo, mid);
+    else a_hi = std::min(a_hi, mid);
+    if(count < target) b_lo = std::max(b_lo, mid);
+    else b_hi = std::min(b_hi, mid);
+  }
+  return a_lo;
+}
+
+/// The k smallest eigenpairs when they crowd together far above the null space (Crowding_watch;
+/// `estimates` are a given-up run's, ascending): a block Lanczos run from a shift just below
+/// the smallest non-null eigenvalue, which inertia counts locate by bisection, on the complement
+/// of the null space (the constants of every component, the one of a connected mesh too: it lies
+/// below the shift). `operations` are those spent, since `start`, before. None when the shift
+/// cannot be placed (shift_below_crowded()).
+inline std::optional<Spectral_pairs> reshifted_eigenpairs(const Eigen::SparseMatrix<double>& stiffness,
+                                                          const Eigen::VectorXd& mass, Eigen::Index k,
+                                                          const Spectral_options& opt, const Eigen::VectorXd& estimates,
+                                                          long long operations,
+                                                          std::chrono::steady_clock::time_point start)
+{
+  using clock = std::chrono::steady_clock;
+  int attempt = 1;
+  auto report = [&](const char* stage, long long ops) {
+    if(opt.progress)
+      opt.progress(Spectral_progress{stage, ops, attempt, std::chrono::duration<double>(clock::now() - start).count()});
+  };
+  const Eigen::Index n = mass.size();
+  const Eigen::VectorXd sqrt_mass = mass.cwiseSqrt();
+  const Null_space_deflation null_space(stiffness, mass, 1);
+  const Eigen::Index c = null_space.count();  // 0: not a Laplacian, no known null space
+  report("locating the crowded eigenvalues", operations);
+  Shifted_ldlt ldlt(stiffness, mass);
+
+  const std::optional<double> shift = shift_below_crowded(ldlt, c, estimates, -opt.shift_factor / mass.sum());
+  if(!shift) return std::nullopt;
+  const double sigma = *shift;
+
+  const Deflated_solve<Shifted_ldlt> deflated(ldlt, null_space, mass);
+  const std::function<void(long long)> on_op = [&](long long ops) {
+    if(opt.progress) report("lanczos", operations + ops);
+  };
+  Eigen::Index extra = opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
+  Spectral_options run_opt = opt;
+  Eigen::Index block = 0;
+  for(;; ++attempt) {
+    const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
+    if(opt.block_size <= 0) {
+      block = std::max(block, default_block_size(m));
+      run_opt.block_size = int(block);
+    }
+    ldlt.factorize_at(sigma);  // again: the counts overwrite it
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
+                                 : lanczos_run(ldlt, sqrt_mass, sigma, m, run_opt, on_op);
+    if(c > 0) null_space.prepend_null_space(pairs, mass);
+    operations += pairs.operations;
+    pairs.operations = operations;
+    pairs.attempts = attempt;
+    if(!opt.check_completeness) return pairs;
+    report("checking completeness", operations);
+    if(const Eigen::Index keep = verified_count(pairs.values, k, [&](double tau) { return ldlt.factorize_at(tau); })) {
+      pairs.values.conservativeResize(keep);
+      pairs.vectors.conservativeResize(Eigen::NoChange, keep);
+      return pairs;
+    }
+    if(attempt >= 4 || m >= n - c - 2)
+      throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
+                            " smallest eigenpairs (crowded eigenvalues, shift " + message_number(sigma) + ", " +
+                            std::to_string(attempt) + " attempts)");
+    extra = 2 * extra + 4;
+    if(opt.block_size <= 0 && largest_multiplicity(pairs.values, c) >= block) block *= 2;
+  }
+}
+
+/// smallest_eigenpairs_with(), and reshifted_eigenpairs() when its first run gives up; the first
+/// run again, unwatched, when the second cannot place its shift.
+template <typename Factor>
+Spectral_pairs smallest_eigenpairs_reshifting(const Eigen::SparseMatrix<double>& stiffness,
+                                              const Eigen::VectorXd& mass, Eigen::Index k, const Spectral_options& opt)
+{
+  const auto start = std::chrono::steady_clock::now();
+  Eigen::VectorXd crowded;
+  Spectral_pairs pairs = smallest_eigenpairs_with<Factor>(stiffness, mass, k, opt, &crowded);
+  if(crowded.size() == 0) return pairs;
+  // Given up: `pairs` holds no pairs, and the first run's factor is gone before the second.
+  const long long spent = pairs.operations;
+  if(std::optional<Spectral_pairs> reshifted = reshifted_eigenpairs(stiffness, mass, k, opt, crowded, spent, start))
+    return std::move(*reshifted);
+  pairs = smallest_eigenpairs_with<Factor>(stiffness, mass, k, opt);
+  pairs.operations += spent;
+  return pairs;
 }
 
 inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
@@ -903,14 +1114,14 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   }
   if(opt.cholesky == Sparse_cholesky::cholmod) {
 #ifdef LAPMESH_HAS_CHOLMOD
-    return smallest_eigenpairs_with<Cholmod_supernodal_llt>(stiffness, mass, k, opt);
+    return smallest_eigenpairs_reshifting<Cholmod_supernodal_llt>(stiffness, mass, k, opt);
 #else
     throw std::invalid_argument("Sparse_cholesky::cholmod requested, but lapmesh was compiled without "
                                 "LAPMESH_HAS_CHOLMOD");
 #endif
   }
   using Simplicial_llt = Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
-  return smallest_eigenpairs_with<Simplicial_llt>(stiffness, mass, k, opt);
+  return smallest_eigenpairs_reshifting<Simplicial_llt>(stiffness, mass, k, opt);
 }
 
 } // namespace internal
