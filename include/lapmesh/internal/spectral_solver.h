@@ -686,6 +686,49 @@ private:
 #endif
 };
 
+/// The vectors of a new band, held[cut, end), and of the bands held before it are M-orthogonal
+/// only to about the Krylov tolerance times the distance of a value from its band's shift over its
+/// gap to the other's: far from round-off where distinct values crowd, and not only next to the
+/// cut. The earlier bands (`band_begins`, the last entry the cut) that couple with the new one by
+/// more than 1e-10, up to eight back, take part with it in a Rayleigh-Ritz step that makes them
+/// M-orthonormal again. It keeps their span, and with it their orthogonality to the other bands.
+inline void rayleigh_ritz_across_cut(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
+                                     std::vector<double>& values, std::vector<Eigen::VectorXd>& vectors,
+                                     const std::vector<Eigen::Index>& band_begins, Eigen::Index end)
+{
+  const auto at = [](Eigen::Index j) { return std::size_t(j); };
+  const Eigen::Index cut = band_begins.back();
+  // The coupling P^T M N of an earlier band P with the new band N, measured by its action on two
+  // fixed unit vectors (two products with each band).
+  std::vector<Eigen::VectorXd> probed;
+  for(const double phase : {0.3, 1.9}) {
+    const Eigen::VectorXd probe =
+      Eigen::VectorXd::LinSpaced(end - cut, phase, phase + 0.7 * double(end - cut)).array().sin().matrix().normalized();
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(mass.size());
+    for(Eigen::Index j = cut; j < end; ++j) y += probe[j - cut] * vectors[at(j)];
+    probed.push_back(mass.cwiseProduct(y));
+  }
+  Eigen::Index begin = cut;
+  for(std::size_t b = band_begins.size() - 1; b-- > 0 && band_begins.size() - b <= 9;) {
+    double coupling = 0;
+    for(Eigen::Index i = band_begins[b]; i < band_begins[b + 1]; ++i)
+      for(const Eigen::VectorXd& y : probed) coupling = std::max(coupling, std::abs(vectors[at(i)].dot(y)));
+    if(coupling > 1e-10) begin = band_begins[b];
+  }
+  if(begin == cut) return;
+  Eigen::MatrixXd V(mass.size(), end - begin);
+  for(Eigen::Index j = begin; j < end; ++j) V.col(j - begin) = vectors[at(j)];
+  const Eigen::MatrixXd G = V.transpose() * (mass.asDiagonal() * V);
+  const Eigen::MatrixXd H = -(V.transpose() * (stiffness * V));
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ritz(0.5 * (H + H.transpose()), 0.5 * (G + G.transpose()));
+  if(ritz.info() != Eigen::Success) throw Numerical_error("spectral solver: the Rayleigh-Ritz step across a band's cut failed");
+  V = V * ritz.eigenvectors();  // M-orthonormal: the solver normalises Z^T G Z = I
+  for(Eigen::Index j = begin; j < end; ++j) {
+    values[at(j)] = ritz.eigenvalues()[j - begin];
+    vectors[at(j)] = V.col(j - begin);
+  }
+}
+
 /// Spectrum slicing ("bands", as in Vallet & Levy's manifold harmonics): shift-invert Lanczos
 /// around successive shifts sigma_0 < sigma_1 < ..., each for about band_size pairs, so that the
 /// Krylov space stays small (Spectra's dense work grows with the square of its size). Each
@@ -736,6 +779,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     for(Eigen::Index j = 0; j < c; ++j) vectors.push_back(Z.col(j));
   }
   double u = 0;          // every eigenvalue below u is in `values` (verified by inertia)
+  std::vector<Eigen::Index> band_begins{c};  // the first pair of every band held, and the end
   double density = 0;    // eigenvalues per unit of lambda in the last band
   double sigma = -opt.shift_factor / mass.sum();
   Eigen::Index window = B;
@@ -814,6 +858,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
         };
         if(leading_values_are_complete(F.values[first_new + wanted - 1], k + 1, found_below, factor_at)) {
           hold(first_new, first_new + wanted);
+          if(band > 0) rayleigh_ritz_across_cut(stiffness, mass, values, vectors, band_begins, accepted + wanted);
           break;
         }
       }
@@ -833,6 +878,8 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       continue;
     }
     hold(first_new, cut_at);
+    if(band > 0) rayleigh_ritz_across_cut(stiffness, mass, values, vectors, band_begins, accepted + added);
+    band_begins.push_back(accepted + added);
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
     u = cut;
     ++band;
