@@ -898,6 +898,61 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
   return out;
 }
 
+/// The pairs a first run asks for beyond the k wanted: they locate the spectral gap above them.
+inline Eigen::Index extra_pairs(Eigen::Index k, const Spectral_options& opt)
+{
+  return opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
+}
+
+/// The retries of a shift-invert solve for the k smallest pairs, c of them the null space's:
+/// Krylov runs, each asking for more pairs than the last (and, with the default block size, a
+/// larger block), until the inertia counts `below(tau)` verify them. `run(m, run_opt, spent)` is
+/// one run for m pairs above the null space, returned with the null space's pairs first; one
+/// that holds no values was given up (Crowding_watch) and is returned at once. `spent` are the
+/// operations before it, `attempt` the caller's (its progress reports), `missed` what a failure
+/// names.
+template <typename Report, typename Run, typename Below>
+Spectral_pairs verified_runs(Eigen::Index n, Eigen::Index k, Eigen::Index c, Eigen::Index extra,
+                             const Spectral_options& opt, long long spent, int& attempt, const Report& report,
+                             const Run& run, const Below& below, const std::string& missed)
+{
+  Spectral_options run_opt = opt;
+  Eigen::Index block = 0;
+  for(attempt = 1;; ++attempt) {
+    // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
+    const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
+    if(opt.block_size <= 0) {
+      block = std::max(block, default_block_size(m));
+      run_opt.block_size = int(block);
+    }
+    Spectral_pairs pairs = run(m, run_opt, spent);
+    spent += pairs.operations;
+    pairs.operations = spent;
+    pairs.attempts = attempt;
+    if(pairs.values.size() == 0 || !opt.check_completeness) return pairs;
+    bool checking = false;
+    const auto counted_below = [&](double tau) {
+      if(!checking) report("checking completeness", spent);
+      checking = true;
+      return below(tau);
+    };
+    if(const Eigen::Index keep = verified_count(pairs.values, k, counted_below)) {
+      pairs.values.conservativeResize(keep);
+      pairs.vectors.conservativeResize(Eigen::NoChange, keep);
+      return pairs;
+    }
+    // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
+    // the computed pairs: ask for more.
+    if(attempt >= 4 || m >= n - c - 2)
+      throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
+                            " smallest eigenpairs (" + missed + " after " + std::to_string(attempt) + " attempts)");
+    extra = 2 * extra + 4;
+    // A block of b vectors finds at most b copies of an exactly repeated eigenvalue (in exact
+    // arithmetic): b copies of one value suggest that there are more, and a larger block.
+    if(opt.block_size <= 0 && largest_multiplicity(pairs.values, c) >= block) block *= 2;
+  }
+}
+
 /// The k smallest eigenpairs by one shift-invert Krylov run from below zero, repeated with more
 /// pairs until the inertia counts verify them. With `crowded`, a first block Lanczos run whose
 /// wanted values crowd far above the shift (Crowding_watch) is given up: the result then holds
@@ -916,7 +971,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
     if(opt.progress) opt.progress(Spectral_progress{stage, ops, attempt, elapsed()});
   };
 
-  Eigen::Index extra = opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
+  const Eigen::Index extra = extra_pairs(k, opt);
   // Small problems, or nearly the whole spectrum: Krylov needs m < n, use a dense solver.
   if(k + extra >= n / 2 && n <= opt.dense_limit) {
     report("dense eigen-solver", 0);
@@ -940,67 +995,36 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
   const Null_space_deflation null_space(stiffness, mass);
   const Eigen::Index c = null_space.count();  // 0 on a connected mesh
   const Deflated_solve<Factor> deflated(factor, null_space, mass);
-  long long total_ops = 0;
   const std::function<void(long long)> on_op = [&](long long ops) {
     if(opt.progress) report("lanczos", ops);
   };
   bool factor_overwritten = false;
-  Spectral_options run_opt = opt;
-  Eigen::Index block = 0;
-  for(;; ++attempt) {
-    // With a deflated null space, the Krylov run looks for the pairs above its c zeros only.
-    const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
-    if(opt.block_size <= 0) {
-      block = std::max(block, default_block_size(m));
-      run_opt.block_size = int(block);
-    }
-    Crowding_watch watch;
-    Crowding_watch* watching = attempt == 1 && crowded ? &watch : nullptr;
-    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, watching)
-                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op, watching);
-    if(watch.estimates.size() > 0) {
-      *crowded = std::move(watch.estimates);
-      return pairs;
-    }
-    if(c > 0) null_space.prepend_null_space(pairs, mass);
-    total_ops += pairs.operations;
-    pairs.operations = total_ops;
-    pairs.attempts = attempt;
-    if(!opt.check_completeness) return pairs;
-
-    // The eigenvalues below tau, by inertia; the counter is made at the run's first check.
-    bool checking = false;
-    const auto count_below = [&](double tau) {
-      if(!checking) report("checking completeness", total_ops);
-      checking = true;
-      if(!counter) counter.emplace(factor, stiffness, mass);
-      factor_overwritten = counter->overwrites_factor();
-      return counter->below(tau);
-    };
-    if(const Eigen::Index keep = verified_count(pairs.values, k, count_below)) {
-      pairs.values.conservativeResize(keep);
-      pairs.vectors.conservativeResize(Eigen::NoChange, keep);
-      return pairs;
-    }
-    // A member of a repeated eigenvalue was missed, or the cluster of lambda_{k-1} extends past
-    // the computed pairs: ask for more.
-    if(attempt >= 4 || m >= n - c - 2)
-      throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
-                            " smallest eigenpairs (repeated eigenvalues missed after " + std::to_string(attempt) +
-                            " attempts)");
-    extra = 2 * extra + 4;
-    // A block of b vectors finds at most b copies of an exactly repeated eigenvalue (in exact
-    // arithmetic): b copies of one value suggest that there are more, and a larger block.
-    if(opt.block_size <= 0 && largest_multiplicity(pairs.values, c) >= block) block *= 2;
-    if(factor_overwritten) {  // the check used the factor's memory: factorise again (same analysis)
-      report("factorising", total_ops);
+  const auto run = [&](Eigen::Index m, const Spectral_options& run_opt, long long spent) {
+    if(factor_overwritten) {  // the last check used the factor's memory: factorise again (same analysis)
+      report("factorising", spent);
       K = shifted_pencil(stiffness, mass, sigma);
       factor.factorize(K);
       if(factor.info() != Eigen::Success) factorise_or_throw(factor, K);
       release(K);
       factor_overwritten = false;
     }
-  }
+    Crowding_watch watch;
+    Crowding_watch* watching = attempt == 1 && crowded ? &watch : nullptr;
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, watching)
+                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op, watching);
+    if(watch.estimates.size() > 0)
+      *crowded = std::move(watch.estimates);  // given up: no pairs
+    else if(c > 0)
+      null_space.prepend_null_space(pairs, mass);
+    return pairs;
+  };
+  // The eigenvalues below tau, by inertia; the counter is made at the first check.
+  const auto count_below = [&](double tau) {
+    if(!counter) counter.emplace(factor, stiffness, mass);
+    factor_overwritten = counter->overwrites_factor();
+    return counter->below(tau);
+  };
+  return verified_runs(n, k, c, extra, opt, 0, attempt, report, run, count_below, "repeated eigenvalues missed");
 }
 
 /// A shift for the eigenvalues that a given-up run's `estimates` (ascending) locate roughly: c
@@ -1020,27 +1044,28 @@ inline std::optional<double> shift_below_crowded(Shifted_ldlt& ldlt, Eigen::Inde
   const double spread = std::max(estimates[last] - estimates[first], 1e-12 * scale);
   // Brackets: c eigenvalues below a_lo, more below a_hi; fewer than `target` below b_lo, at least
   // as many below b_hi.
+  const double lowest = 1e-3 * estimates[first];  // with a null space: clear of its round-off at 0
   double a_lo = estimates[first] - spread;
   for(double step = spread;;) {
     if(c == 0 && a_lo <= sigma0) {
       a_lo = sigma0;
       break;
     }
-    if(c > 0 && a_lo <= 1e-3 * estimates[first]) a_lo = 1e-3 * estimates[first];  // clear of round-off at 0
+    const bool at_lowest = c > 0 && a_lo <= lowest;
+    if(at_lowest) a_lo = lowest;
     const Eigen::Index count = ldlt.factorize_at(a_lo);
     if(count == c) break;
-    if(count < c || a_lo == 1e-3 * estimates[first]) return std::nullopt;
+    if(count < c || at_lowest) return std::nullopt;
     step *= 4;  // an eigenvalue below the estimates
     a_lo = estimates[first] - step;
   }
   double b_hi = estimates[last] + 1e-9 * scale;
   for(double step = spread; ldlt.factorize_at(b_hi) < target; step *= 4) b_hi += step;
   double a_hi = b_hi, b_lo = a_lo;
-  for(int i = 0; i < 200; ++i) {
-    const double width = b_lo - a_hi;  // the wanted values span at least this
-    const double resolution = 1e-13 * scale;
-    const bool a_done = a_hi - a_lo <= std::max(0.1 * width, resolution);
-    if(a_done || (a_hi - a_lo <= resolution && b_hi - b_lo <= resolution)) break;
+  const double resolution = 1e-13 * scale;
+  // Done when the a bracket is a tenth of the least width of the wanted values, b_lo - a_hi,
+  // or at the resolution (a value repeated through the wanted range: no width).
+  for(int i = 0; i < 200 && a_hi - a_lo > std::max(0.1 * (b_lo - a_hi), resolution); ++i) {
     // Bisect the a bracket, unless the b bracket is wider: the width is not yet known.
     const bool split_a = a_hi - a_lo >= b_hi - b_lo;
     const double mid = split_a ? 0.5 * (a_lo + a_hi) : 0.5 * (b_lo + b_hi);
@@ -1084,39 +1109,21 @@ inline std::optional<Spectral_pairs> reshifted_eigenpairs(const Eigen::SparseMat
   const double sigma = *shift;
 
   const Deflated_solve<Shifted_ldlt> deflated(ldlt, null_space, mass);
+  long long run_start = operations;
   const std::function<void(long long)> on_op = [&](long long ops) {
-    if(opt.progress) report("lanczos", operations + ops);
+    if(opt.progress) report("lanczos", run_start + ops);
   };
-  Eigen::Index extra = opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
-  Spectral_options run_opt = opt;
-  Eigen::Index block = 0;
-  for(;; ++attempt) {
-    const Eigen::Index m = std::min<Eigen::Index>(std::max<Eigen::Index>(k - c, 0) + extra, n - c - 2);
-    if(opt.block_size <= 0) {
-      block = std::max(block, default_block_size(m));
-      run_opt.block_size = int(block);
-    }
+  const auto run = [&](Eigen::Index m, const Spectral_options& run_opt, long long spent) {
+    run_start = spent;
     ldlt.factorize_at(sigma);  // again: the counts overwrite it
     Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
                                  : lanczos_run(ldlt, sqrt_mass, sigma, m, run_opt, on_op);
     if(c > 0) null_space.prepend_null_space(pairs, mass);
-    operations += pairs.operations;
-    pairs.operations = operations;
-    pairs.attempts = attempt;
-    if(!opt.check_completeness) return pairs;
-    report("checking completeness", operations);
-    if(const Eigen::Index keep = verified_count(pairs.values, k, [&](double tau) { return ldlt.factorize_at(tau); })) {
-      pairs.values.conservativeResize(keep);
-      pairs.vectors.conservativeResize(Eigen::NoChange, keep);
-      return pairs;
-    }
-    if(attempt >= 4 || m >= n - c - 2)
-      throw Numerical_error("spectral solver: could not obtain a complete set of the " + std::to_string(k) +
-                            " smallest eigenpairs (crowded eigenvalues, shift " + message_number(sigma) + ", " +
-                            std::to_string(attempt) + " attempts)");
-    extra = 2 * extra + 4;
-    if(opt.block_size <= 0 && largest_multiplicity(pairs.values, c) >= block) block *= 2;
-  }
+    return pairs;
+  };
+  const auto count_below = [&](double tau) { return ldlt.factorize_at(tau); };
+  return verified_runs(n, k, c, extra_pairs(k, opt), opt, operations, attempt, report, run, count_below,
+                       "eigenvalues crowded above the shift " + message_number(sigma) + " missed");
 }
 
 /// smallest_eigenpairs_with(), and reshifted_eigenpairs() when its first run gives up; the first
