@@ -743,7 +743,9 @@ inline void rayleigh_ritz_across_cut(const Eigen::SparseMatrix<double>& stiffnes
 /// slice above the accepted range: the inertia at the shift bounds how far the shift may lie
 /// above it, a window that does not reach back to the accepted range pulls the shift down, and
 /// a window whose new values hold no gap before its edge (a cluster wider than the window), or
-/// that fails the inertia count (a missed copy of a repeated value), is widened.
+/// that fails the inertia count (a missed copy of a repeated value), is widened. Values that
+/// crowd far above the last cut, across a gap that the counts show empty, raise the accepted
+/// range to just below them, so that the next shift lies next to them and not in the gap.
 inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
@@ -784,6 +786,16 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
   double sigma = -opt.shift_factor / mass.sum();
   Eigen::Index window = B;
   int attempt = 0;
+  // u was raised to just below values that crowd far above the last cut, nothing lying between:
+  // a window above u then reaches the accepted range.
+  bool u_raised = false;
+  // Where u is raised to: below `lowest` by half the `spread` of the values from it, but by no
+  // less than a margin far wider than round-off (the count there must not depend on an
+  // eigenvalue's last digits), and no more than half the way down to `floor`.
+  const auto just_below = [](double lowest, double floor, double spread) {
+    const double margin = 1e3 * partial_eigenspace_margin * std::abs(lowest);
+    return lowest - std::min(0.5 * (lowest - floor), std::max(0.5 * spread, margin));
+  };
   auto retry = [&](bool widen, const std::string& why) {
     if(++attempt >= max_attempts || (widen && window >= max_window))
       throw Numerical_error("spectral solver: band " + std::to_string(band) + " could not be completed in " +
@@ -816,10 +828,14 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       }
     };
 #ifdef LAPMESH_DEBUG_BANDS
-    std::fprintf(stderr, "band %d attempt %d window %ld sigma %.9g u %.9g found [%.9g, %.9g]\n", band, attempt,
-                 long(window), sigma, u, F.values[0], F.values[m - 1]);
+    std::fprintf(stderr, "band %d attempt %d window %ld sigma %.9g u %.9g found [%.9g, %.9g] in %lld solves\n", band,
+                 attempt, long(window), sigma, u, F.values[0], F.values[m - 1], F.operations);
 #endif
-    if(band > 0 && F.values[0] > u) {  // no overlap with the accepted range: move the shift down
+    // No overlap with the accepted range: move the shift down, unless u was raised to just below
+    // values crowded above the last cut and the inertia shows nothing between u and the window
+    // (one missed closer to it fails the cut's count).
+    if(band > 0 && F.values[0] > u &&
+       !(u_raised && factor_at(just_below(F.values[0], u, F.values[m - 1] - F.values[0])) == accepted)) {
       retry(false, "the window does not reach the accepted range");
       sigma = u + 0.5 * (sigma - u);
       continue;
@@ -832,20 +848,26 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     }
     // Krylov misses happen at the edge of the window: drop the top eighth. Cut at the widest
     // relative gap in the upper half of the new values that remain (wide gaps keep vectors of
-    // neighbouring bands orthogonal), else at any gap above u.
+    // neighbouring bands orthogonal), else at any gap above u; where distinct values crowd so
+    // that no gap is wide, at a narrow one (the Rayleigh-Ritz step across the cut restores
+    // orthogonality), still far wider than the margin that joins values into one eigenspace.
     const Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
     Eigen::Index first_new = 0;
     while(first_new < m && band > 0 && F.values[first_new] < u) ++first_new;
-    Eigen::Index cut_at = -1;  // the cut lies between F.values[cut_at - 1] and F.values[cut_at]
-    for(Eigen::Index from : {first_new + 1 + (top - first_new) / 2, first_new + 1}) {
-      double widest = 1e-6;
+    // The cut lies between F.values[cut_at - 1] and F.values[cut_at]; -1: no gap of that width.
+    const auto widest_gap = [&](Eigen::Index from, double narrowest) {
+      Eigen::Index at = -1;
       for(Eigen::Index j = std::max<Eigen::Index>(from, 1); j <= top; ++j)
-        if(relative_gap(F.values[j - 1], F.values[j]) > widest) {
-          widest = relative_gap(F.values[j - 1], F.values[j]);
-          cut_at = j;
+        if(relative_gap(F.values[j - 1], F.values[j]) > narrowest) {
+          narrowest = relative_gap(F.values[j - 1], F.values[j]);
+          at = j;
         }
-      if(cut_at >= 0) break;
-    }
+      return at;
+    };
+    Eigen::Index cut_at = -1;
+    for(const double narrowest : {1e-6, 100 * partial_eigenspace_margin})
+      for(const Eigen::Index from : {first_new + 1 + (top - first_new) / 2, first_new + 1})
+        if(cut_at < 0) cut_at = widest_gap(from, narrowest);
     if(cut_at < 0) {  // the new values up to the edge are one cluster: widen past it
       // Unless they reach k + 1 (one past the k asked for: see the single run) and the counts show
       // that none below them was missed.
@@ -882,6 +904,19 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     band_begins.push_back(accepted + added);
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
     u = cut;
+    u_raised = false;
+    // The window's values above the cut estimate the next ones. Where distinct values crowd far
+    // above it (a gap far wider than their spread), a shift placed by the density would lie in
+    // the gap, and see them as nearly one value (a slow run, poorly resolved vectors). When the
+    // counts show no eigenvalue in the gap, the accepted range reaches up to just below them.
+    // (Copies of one repeated value are left alone: raising u puts them at the next window's
+    // lower edge, where a run misses copies.)
+    if(const double next = F.values[cut_at], spread = F.values[m - 1] - next;
+       spread > 1e3 * partial_eigenspace_margin * std::abs(next) && next - cut > 100 * spread &&
+       factor_at(just_below(next, cut, spread)) == accepted + added) {
+      u = just_below(next, cut, spread);
+      u_raised = true;
+    }
     ++band;
     attempt = 0;  // a window widened for a cluster is kept: a sphere's clusters grow with lambda
   }
