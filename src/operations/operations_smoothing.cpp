@@ -14,12 +14,7 @@ namespace lapmesh_ops {
 
 namespace {
 
-std::string format_number(double x)
-{
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", x);
-  return buf;
-}
+using lapmesh::internal::message_number;  // "%g", as the library's own messages print numbers
 
 // The text of an option as given, bounded: it goes into a one-line message.
 std::string bounded(const std::string& text) { return text.size() <= 40 ? text : text.substr(0, 40) + "..."; }
@@ -46,9 +41,9 @@ void check(const Smooth_settings& s, const Smoothing_limits& limits)
   if(!s.lambda.automatic && (!(s.lambda.value > 0) || !std::isfinite(s.lambda.value) || s.lambda.value > limits.max_lambda))
     throw lapmesh::Parameter_error("lambda", "must be a positive finite time step" +
                                                std::string(std::isfinite(limits.max_lambda)
-                                                             ? " at most " + format_number(limits.max_lambda)
+                                                             ? " at most " + message_number(limits.max_lambda)
                                                              : "") +
-                                               " (got " + format_number(s.lambda.value) + ")");
+                                               " (got " + message_number(s.lambda.value) + ")");
   if(s.iterations <= 0)
     throw lapmesh::Parameter_error("iterations", "must be a positive integer (got " + std::to_string(s.iterations) + ")");
   if(s.iterations > limits.max_iterations)
@@ -106,8 +101,8 @@ Smooth_result smooth_numbered(Mesh& mesh, const Smooth_settings& s, const Number
   }
   mesh = std::move(work);
   if(explicit_scheme && out.lambda > out.stability_bound)
-    out.warnings.push_back({"lambda " + format_number(out.lambda) + " exceeds the explicit stability bound " +
-                              format_number(out.stability_bound),
+    out.warnings.push_back({"lambda " + message_number(out.lambda) + " exceeds the explicit stability bound " +
+                              message_number(out.stability_bound),
                             {{"lambda", "auto"}, {"lambda_unit", "bound"}}});
   return out;
 }
@@ -122,7 +117,7 @@ Smooth_result smooth(Mesh& mesh, const Smooth_settings& s, const Smoothing_limit
 void check(const Noise_settings& s)
 {
   if(!(s.level >= 0) || !std::isfinite(s.level))
-    throw lapmesh::Parameter_error("level", "must be a finite number >= 0 (got " + format_number(s.level) + ")");
+    throw lapmesh::Parameter_error("level", "must be a finite number >= 0 (got " + message_number(s.level) + ")");
 }
 
 double add_noise(Mesh& mesh, const Noise_settings& s)
