@@ -450,9 +450,6 @@ Eigen::Index eigenvalues_below(const lapmesh::Laplacian_pencil& p, double tau)
   return (ldlt.vectorD().array() < 0).count();
 }
 
-// A held spectrum is right when its vectors are M-orthonormal, every pair has a small
-// residual, and the inertia count at gaps spread over the held values (and just above the
-// last one) equals the number of values held below: no eigenvalue was dropped or duplicated.
 /// max_j ||S phi_j + lambda_j M phi_j|| / (lambda_j ||M phi_j||) over j >= 1. Exact zeros are the
 /// null vectors of a mesh of several parts: measured against the largest value.
 double largest_relative_residual(const lapmesh::Laplacian_pencil& p, const lapmesh::Spectral_basis& b)
@@ -466,6 +463,9 @@ double largest_relative_residual(const lapmesh::Laplacian_pencil& p, const lapme
   return worst;
 }
 
+// A held spectrum is right when its vectors are M-orthonormal, every pair has a small
+// residual, and the inertia count at gaps spread over the held values (and just above the
+// last one) equals the number of values held below: no eigenvalue was dropped or duplicated.
 void expect_verified_spectrum(const lapmesh::Laplacian_pencil& p, const lapmesh::Spectral_basis& b, Eigen::Index k,
                               const std::string& what)
 {

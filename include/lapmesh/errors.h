@@ -78,18 +78,15 @@ private:
   std::string m_parameter, m_suggested_value;
 };
 
-namespace internal {
-
-/// A number as the library's messages print it ("%g"): std::to_string's fixed six decimals
-/// print a tolerance of 1e-10 or a vertex area of -1e-9 as 0.000000.
+/// A number as lapmesh's messages print it ("%g"), for front ends whose messages sit beside the
+/// library's: std::to_string's fixed six decimals print a tolerance of 1e-10 or a vertex area
+/// of -1e-9 as 0.000000.
 inline std::string message_number(double x)
 {
   char text[32];
   std::snprintf(text, sizeof text, "%g", x);
   return text;
 }
-
-} // namespace internal
 
 } // namespace lapmesh
 

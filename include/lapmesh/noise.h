@@ -80,7 +80,7 @@ inline double add_noise(const Mesh_topology& t, Positions& P, double level, Nois
                         Noise_scale scale, std::uint64_t seed)
 {
   if(!(level >= 0) || !std::isfinite(level))
-    throw std::invalid_argument("the noise level must be a finite number >= 0 (got " + internal::message_number(level) + ")");
+    throw std::invalid_argument("the noise level must be a finite number >= 0 (got " + message_number(level) + ")");
   const double sigma = noise_sigma(t, P, level, scale);
   Normal_sampler g(seed);
   if(direction == Noise_direction::isotropic) {

@@ -14,7 +14,7 @@ namespace lapmesh_ops {
 
 namespace {
 
-using lapmesh::internal::message_number;  // "%g", as the library's own messages print numbers
+using lapmesh::message_number;
 
 // The text of an option as given, bounded: it goes into a one-line message.
 std::string bounded(const std::string& text) { return text.size() <= 40 ? text : text.substr(0, 40) + "..."; }

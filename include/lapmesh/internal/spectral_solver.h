@@ -794,12 +794,13 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
   // u was raised to just below values that crowd far above the last cut, nothing lying between:
   // a window above u then reaches the accepted range.
   bool u_raised = false;
+  // Values this far apart (relative) are distinct, far beyond round-off.
+  constexpr double distinct = 1e3 * partial_eigenspace_margin;
   // Where u is raised to: below `lowest` by half the `spread` of the values from it, but by no
-  // less than a margin far wider than round-off (the count there must not depend on an
-  // eigenvalue's last digits), and no more than half the way down to `floor`.
+  // less than `distinct` (the count there must not depend on an eigenvalue's last digits), and
+  // no more than half the way down to `floor`.
   const auto just_below = [](double lowest, double floor, double spread) {
-    const double margin = 1e3 * partial_eigenspace_margin * std::abs(lowest);
-    return lowest - std::min(0.5 * (lowest - floor), std::max(0.5 * spread, margin));
+    return lowest - std::min(0.5 * (lowest - floor), std::max(0.5 * spread, distinct * std::abs(lowest)));
   };
   auto retry = [&](bool widen, const std::string& why) {
     if(++attempt >= max_attempts || (widen && window >= max_window))
@@ -927,11 +928,11 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     // counts show no eigenvalue in the gap, the accepted range reaches up to just below them.
     // (Copies of one repeated value are left alone: raising u puts them at the next window's
     // lower edge, where a run misses copies.)
-    if(const double next = F.values[cut_at], spread = F.values[m - 1] - next;
-       spread > 1e3 * partial_eigenspace_margin * std::abs(next) && next - cut > 100 * spread &&
-       factor_at(just_below(next, cut, spread)) == accepted + added) {
-      u = just_below(next, cut, spread);
-      u_raised = true;
+    const double next = F.values[cut_at], spread = F.values[m - 1] - next;
+    if(spread > distinct * std::abs(next) && next - cut > 100 * spread) {
+      const double raised = just_below(next, cut, spread);
+      u_raised = factor_at(raised) == accepted + added;
+      if(u_raised) u = raised;
     }
     ++band;
     attempt = 0;  // a window widened for a cluster is kept: a sphere's clusters grow with lambda
