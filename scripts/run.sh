@@ -7,7 +7,8 @@
 #   scripts/run.sh sanitize  AddressSanitizer + UndefinedBehaviorSanitizer build of the CLI and
 #                          the unit tests that exercise readers, operators and the CLI, run with
 #                          ctest; then each reader's fuzzer for FUZZ_SECONDS (default 60)
-# Environment: BUILD_DIR (default build), SANITIZE_DIR (default build-sanitize), JOBS (default nproc).
+# Environment: BUILD_DIR (default build), SANITIZE_DIR (default build-sanitize), JOBS (default nproc),
+#              WARNINGS_AS_ERRORS=ON (compile the project's own code with -Werror; CI sets it).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache hashes paths under the checkout relative to it: two clones share their compilations.
@@ -45,7 +46,8 @@ setup() {
 # build [TARGET...]: configure and build the given targets (all of them by default).
 build() {
   setup
-  cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
+        -DLAPMESH_WARNINGS_AS_ERRORS="${WARNINGS_AS_ERRORS:-OFF}" >/dev/null
   if [ $# -gt 0 ]; then
     cmake --build "$BUILD_DIR" -j "$JOBS" --target "$@"
   else
