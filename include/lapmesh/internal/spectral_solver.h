@@ -853,10 +853,11 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       break;
     }
     // Krylov misses happen at the edge of the window: drop the top eighth. Cut at the widest
-    // relative gap in the upper half of the new values that remain (wide gaps keep vectors of
-    // neighbouring bands orthogonal), else at any gap above u; where distinct values crowd so
-    // that no gap is wide, at a narrow one (the Rayleigh-Ritz step across the cut restores
-    // orthogonality), still far wider than the margin that joins values into one eigenspace.
+    // relative gap in the upper quarter of the new values that remain (a wide gap keeps vectors
+    // of neighbouring bands orthogonal; a high one leaves fewer values to find again), else at
+    // any gap above u; where distinct values crowd so that no gap is wide, at a narrow one (the
+    // Rayleigh-Ritz step across the cut restores orthogonality), still far wider than the margin
+    // that joins values into one eigenspace.
     Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
     Eigen::Index first_new = 0;
     while(first_new < m && band > 0 && F.values[first_new] < u) ++first_new;
@@ -883,7 +884,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     };
     Eigen::Index cut_at = -1;
     for(const double narrowest : {1e-6, 100 * partial_eigenspace_margin})
-      for(const Eigen::Index from : {first_new + 1 + (top - first_new) / 2, first_new + 1})
+      for(const Eigen::Index from : {first_new + 1 + 3 * (top - first_new) / 4, first_new + 1})
         if(cut_at < 0) cut_at = widest_gap(from, narrowest);
     if(cut_at < 0) {  // the new values up to the edge are one cluster: widen past it
       // Unless they reach k + 1 (one past the k asked for: see the single run) and the counts show
