@@ -336,6 +336,19 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   cone.points.push_back({0, 0, 1});
   for(int k = 0; k < 300; ++k) cone.triangles.push_back({k, (k + 1) % 300, 300});
   expect_uniform_paths_equal(to_mesh(cone), "a cone of 300 faces");
+  // Vertices and faces in random order: each row's neighbours arrive unsorted.
+  lapmesh::Triangle_soup shuffled = lapmesh::icosphere(3);
+  std::vector<int> new_index(shuffled.points.size());
+  std::iota(new_index.begin(), new_index.end(), 0);
+  std::mt19937 random(11);
+  std::shuffle(new_index.begin(), new_index.end(), random);
+  std::vector<std::array<double, 3>> points(shuffled.points.size());
+  for(std::size_t i = 0; i < points.size(); ++i) points[std::size_t(new_index[i])] = shuffled.points[i];
+  shuffled.points = points;
+  for(auto& t : shuffled.triangles)
+    for(auto& v : t) v = new_index[std::size_t(v)];
+  std::shuffle(shuffled.triangles.begin(), shuffled.triangles.end(), random);
+  expect_uniform_paths_equal(to_mesh(shuffled), "a shuffled icosphere");
 
   // Two components, a vertex in no face, and an edge in no face between two corners of the
   // patch, linked into both corners' circulations through their border halfedges: it is no

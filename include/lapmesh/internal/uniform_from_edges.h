@@ -11,7 +11,6 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/mesh_extraction.h>
-#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
@@ -35,10 +34,10 @@ namespace internal {
 /// non-finite coordinate, a face that is not a triangle, no face, a face with a repeated vertex.
 /// A vertex in no face gets an empty row and column.
 ///
-/// The rows are a counting sort of the edges by their ends: the graph's own arrays are read in
-/// storage order, and only vertex-sized arrays are written at random. (Circulating around each
-/// vertex instead jumps through the halfedges, which on a mesh of poor locality made this
-/// slower than the general path once the caches were cold.)
+/// The rows are a counting sort of the edges by their ends, then by the other end: the graph's
+/// own arrays are read in storage order. (Circulating around each vertex instead jumps through
+/// the halfedges, which on a mesh of poor locality made this slower than the general path once
+/// the caches were cold.)
 template <typename TriangleMesh, typename RowMap, typename VertexPointMap>
 bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexPointMap vpm,
                                   Eigen::SparseMatrix<double>& W)
@@ -98,16 +97,27 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   advise_huge_pages(W);
   Index* inner = W.innerIndexPtr();
   double* value = W.valuePtr();
+  // Each row's neighbours in the order of the edges (its last slot, the diagonal's, unused),
+  // then every row again in ascending order: row c hands c to its neighbours' rows at step c, a
+  // counting sort by the other end. Sorting each row instead mispredicts a branch at nearly
+  // every step where a vertex's neighbours come in no particular order (a mesh numbered along a
+  // space-filling curve, or shuffled).
+  Working_array<Index> by_edge;
+  by_edge.resize(std::size_t(outer[n]));
   std::vector<Index> fill(outer, outer + n);
   for(std::size_t k = 0; k < ends.size(); k += 2) {
-    inner[fill[std::size_t(ends[k])]++] = ends[k + 1];
-    inner[fill[std::size_t(ends[k + 1])]++] = ends[k];
+    by_edge[std::size_t(fill[std::size_t(ends[k])]++)] = ends[k + 1];
+    by_edge[std::size_t(fill[std::size_t(ends[k + 1])]++)] = ends[k];
+  }
+  std::copy(outer, outer + n, fill.begin());
+  for(Index c = 0; c < n; ++c) {
+    const Index begin = outer[c], end = outer[c + 1];
+    if(begin == end) continue;  // a vertex in no face
+    inner[fill[std::size_t(c)]++] = c;
+    for(Index a = begin; a + 1 < end; ++a) inner[fill[std::size_t(by_edge[std::size_t(a)])]++] = c;
   }
   for(Index r = 0; r < n; ++r) {
     const Index begin = outer[r], end = outer[r + 1];
-    if(begin == end) continue;  // a vertex in no face
-    inner[end - 1] = r;
-    sort_row(inner + begin, std::size_t(end - begin));
     for(Index a = begin; a < end; ++a) {
       if(a > begin && inner[a - 1] == inner[a]) return false;  // two edges between the same vertices
       value[a] = inner[a] == r ? -double(end - begin - 1) : 1.0;
