@@ -296,6 +296,23 @@ TEST(Operators, TopologyMarksNonManifoldEdgesAndMixedOrientation)
 
 namespace {
 
+// `soup` with its vertices renumbered and its faces reordered at random: each vertex's
+// neighbours then arrive in no particular order.
+lapmesh::Triangle_soup shuffled(lapmesh::Triangle_soup soup, unsigned seed)
+{
+  std::vector<int> new_index(soup.points.size());
+  std::iota(new_index.begin(), new_index.end(), 0);
+  std::mt19937 random(seed);
+  std::shuffle(new_index.begin(), new_index.end(), random);
+  std::vector<std::array<double, 3>> points(soup.points.size());
+  for(std::size_t i = 0; i < points.size(); ++i) points[std::size_t(new_index[i])] = soup.points[i];
+  soup.points = std::move(points);
+  for(auto& t : soup.triangles)
+    for(auto& v : t) v = new_index[std::size_t(v)];
+  std::shuffle(soup.triangles.begin(), soup.triangles.end(), random);
+  return soup;
+}
+
 // The uniform pencil read off the graph's edges and through the general path (extraction and
 // corner topology, which a vertex_index_map selects), compared entry for entry.
 template <typename Graph>
@@ -336,19 +353,7 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   cone.points.push_back({0, 0, 1});
   for(int k = 0; k < 300; ++k) cone.triangles.push_back({k, (k + 1) % 300, 300});
   expect_uniform_paths_equal(to_mesh(cone), "a cone of 300 faces");
-  // Vertices and faces in random order: each row's neighbours arrive unsorted.
-  lapmesh::Triangle_soup shuffled = lapmesh::icosphere(3);
-  std::vector<int> new_index(shuffled.points.size());
-  std::iota(new_index.begin(), new_index.end(), 0);
-  std::mt19937 random(11);
-  std::shuffle(new_index.begin(), new_index.end(), random);
-  std::vector<std::array<double, 3>> points(shuffled.points.size());
-  for(std::size_t i = 0; i < points.size(); ++i) points[std::size_t(new_index[i])] = shuffled.points[i];
-  shuffled.points = points;
-  for(auto& t : shuffled.triangles)
-    for(auto& v : t) v = new_index[std::size_t(v)];
-  std::shuffle(shuffled.triangles.begin(), shuffled.triangles.end(), random);
-  expect_uniform_paths_equal(to_mesh(shuffled), "a shuffled icosphere");
+  expect_uniform_paths_equal(to_mesh(shuffled(lapmesh::icosphere(3), 11)), "a shuffled icosphere");
 
   // Two components, a vertex in no face, and an edge in no face between two corners of the
   // patch, linked into both corners' circulations through their border halfedges: it is no
@@ -769,6 +774,8 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   }
   std::vector<std::pair<int, Working_array<int>>> cases = {flat(lapmesh::icosphere(2)), flat(lapmesh::torus(12, 8)),
                                                          flat(lapmesh::plane_patch(6)), flat(two),
+                                                         flat(shuffled(lapmesh::torus(12, 8), 5)),
+                                                         flat(shuffled(lapmesh::plane_patch(6), 7)),
                                                          // two triangles that share a vertex only
                                                          {5, {0, 1, 2, 0, 3, 4}},
                                                          {42, double_cone},

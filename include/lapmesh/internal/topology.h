@@ -676,6 +676,36 @@ inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> tri
   return t;
 }
 
+/// The edge counts around one vertex i of at most Width corners, from the far ends of its
+/// outgoing and incoming halfedges (`out`, `in`, d of each), by comparing every pair rather than
+/// sorting: where a vertex's neighbours come in no particular order, a sort mispredicts a
+/// branch at nearly every step. Padding takes distinct negative values, which match nothing.
+/// Returns false when a neighbour repeats in either list (two faces on one side of an edge).
+template <int Width>
+bool corner_ring_counts(const Index* out, const Index* in, Index d, Index i, Index& out_above, Index& in_above,
+                        Index& shared, Index& shared_above)
+{
+  Index o[Width], n[Width];
+  for(int a = 0; a < Width; ++a) {
+    o[a] = a < d ? out[a] : -1 - a;
+    n[a] = a < d ? in[a] : -1 - Width - a;
+  }
+  Index repeats = 0;
+  out_above = in_above = shared = shared_above = 0;
+  for(int a = 0; a < Width; ++a) {
+    Index matches = 0;
+    for(int b = 0; b < Width; ++b) {
+      repeats += (b > a) & ((o[a] == o[b]) | (n[a] == n[b]));
+      matches += n[a] == o[b];
+    }
+    shared += matches;
+    shared_above += matches & Index(n[a] > i);
+    out_above += o[a] > i;
+    in_above += n[a] > i;
+  }
+  return repeats == 0;
+}
+
 /// The topology that per-corner passes and their gathers need (angles, areas, Gaussian
 /// curvature, the cotangent sums of the mean curvature): build_corner_incidence(), the boundary
 /// vertices and the edge counts, without the sparsity pattern and its slots (has_pattern()
@@ -714,6 +744,17 @@ inline Mesh_topology build_corner_topology(Index num_vertices, Working_array<Ind
       for(Index k = begin; k < end; ++k) {
         out[std::size_t(k - begin)] = tri[next_corner(t.vertex_corners[k])];
         in[std::size_t(k - begin)] = tri[prev_corner(t.vertex_corners[k])];
+      }
+      if(end - begin <= 8) {
+        Index out_above, in_above, shared_count, shared_above;
+        if(!corner_ring_counts<8>(out.data(), in.data(), end - begin, i, out_above, in_above, shared_count, shared_above)) {
+          counts.manifold = false;
+          break;
+        }
+        if(shared_count != end - begin) t.on_boundary[i] = 1;
+        counts.edges += out_above + in_above - shared_above;
+        counts.boundary_edges += out_above + in_above - 2 * shared_above;
+        continue;
       }
       std::sort(out.begin(), out.end());
       std::sort(in.begin(), in.end());
