@@ -293,7 +293,11 @@ decltype(auto) with_default_vertex_rows(const TriangleMesh& tm, F&& f)
     // The internal index (Surface_mesh: v.idx()) may have holes left by removed elements:
     // compact it. (CGAL's dynamic maps on a const Surface_mesh are sized num_vertices() and
     // indexed by idx(), which overflows when there is garbage, so they are not used here.)
+    // A Surface_mesh without removed elements numbers its vertices 0, 1, ... in storage order:
+    // its index is the numbering, with no map to build and no look-up through one.
     auto internal = get(boost::vertex_index, tm);
+    if constexpr(is_surface_mesh<TriangleMesh>::value)
+      if(!tm.has_garbage()) return f(internal);
     std::size_t bound = 0;
     for(auto v : vertices(tm)) bound = std::max<std::size_t>(bound, std::size_t(get(internal, v)) + 1);
     std::vector<Index> dense(bound, -1);

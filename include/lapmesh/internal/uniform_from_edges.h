@@ -134,15 +134,7 @@ bool uniform_pencil_from_edges(const TriangleMesh& tm, const NamedParameters& np
 {
   const auto vpm = CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_point),
                                                       get_const_property_map(CGAL::vertex_point, tm));
-  const auto from_edges = [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, out.stiffness); };
-  bool taken = false;
-  // A Surface_mesh without removed elements numbers its vertices 0, 1, ... in storage order:
-  // its own index is the row, with no map to build and no look-up per edge.
-  if constexpr(is_surface_mesh<TriangleMesh>::value)
-    taken = !tm.has_garbage() ? from_edges(get(boost::vertex_index, tm)) : with_default_vertex_rows(tm, from_edges);
-  else
-    taken = with_default_vertex_rows(tm, from_edges);
-  if(!taken) {
+  if(!with_default_vertex_rows(tm, [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, out.stiffness); })) {
     out.stiffness = Eigen::SparseMatrix<double>();  // no half-written pattern for the general path
     return false;
   }
