@@ -33,8 +33,11 @@ struct Case
 };
 
 // 0: ChineseDragon 10k; 1: armadillo x1 Loop ~104k; 2: man x2 Loop ~280k; 3: refined_elephant 44k;
-// 4: bunny00 37.7k... (see doc/spectral.md for the exact vertex counts printed by the benchmark)
-const Case cases[] = {{"ChineseDragon-10kv.off", 0}, {"armadillo.off", 1}, {"man.off", 2}, {"refined_elephant.off", 0}};
+// 4: the bunny00 scan, 37.7k; 5: mannequin-devil x1 Loop ~52k; 6: camel x1 Loop ~39k (the vertex
+// counts are printed as the counter n).
+const Case cases[] = {{"ChineseDragon-10kv.off", 0}, {"armadillo.off", 1},       {"man.off", 2},
+                      {"refined_elephant.off", 0},   {"bunny00.off", 0},         {"mannequin-devil.off", 1},
+                      {"camel.off", 1}};
 
 const lapmesh::Laplacian_pencil& pencil(int id)
 {
@@ -168,6 +171,19 @@ BENCHMARK_CAPTURE(BM_lapmesh, spectra_simplicial, lapmesh::Sparse_cholesky::simp
 BENCHMARK(BM_lapmesh_nocheck)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_plain_spectra, Simplicial_ldlt_shift_invert)->Apply(sizes);
 BENCHMARK_TEMPLATE(BM_plain_spectra, Spectra::SymShiftInvert<double, Eigen::Sparse, Eigen::Sparse>)->Apply(sizes);
+
+// k = 100 and 300 on three more meshes of about 50k vertices (a scan among them): the default
+// against the usual public set-up only.
+void more_meshes(benchmark::internal::Benchmark* b)
+{
+  b->ArgsProduct({{4, 5, 6}, {100, 300}});
+  b->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(1);
+}
+#ifdef LAPMESH_HAS_CHOLMOD
+BENCHMARK_CAPTURE(BM_lapmesh, block_cholmod_more, lapmesh::Sparse_cholesky::cholmod, lapmesh::Krylov_method::block_lanczos)
+  ->Apply(more_meshes);
+#endif
+BENCHMARK_TEMPLATE(BM_plain_spectra, Simplicial_ldlt_shift_invert)->Name("BM_plain_spectra_more")->Apply(more_meshes);
 
 // Where the time goes: ordering + symbolic analysis, numeric factorisation, one solve pair.
 void BM_breakdown(benchmark::State& state)
