@@ -5,6 +5,7 @@
 #include "test_helpers.h"
 
 #include <lapmesh/internal/row_sort.h>
+#include <lapmesh/curvature.h>
 #include <lapmesh/laplacian.h>
 
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -562,6 +563,87 @@ TEST(Operators, ErrorsOfTheTopologyNameTheInputVertex)
   const auto face = mesh.in_rows(lapmesh::Mesh_error("face 2 has zero area", Element::face, 2));
   EXPECT_STREQ(face.what(), "face 2 has zero area");
   EXPECT_EQ(face.index(), 2);
+  // Faces reordered for locality name the face as read.
+  mesh.face = {4, 0, 17, 9};
+  const auto reordered = mesh.in_rows(lapmesh::Mesh_error("face 2 has zero area", Element::face, 2));
+  EXPECT_STREQ(reordered.what(), "face 17 has zero area");
+  EXPECT_EQ(reordered.index(), 17);
+}
+
+// A mesh in shuffled order is renumbered for locality by the curvatures' extraction (mean and
+// principal curvatures, normals): what they return must not depend on it. The same torus in its
+// own order and shuffled gives the same values vertex for vertex, up to the order of the sums,
+// there and in the operations that keep the order (Gaussian curvature alone, vertex areas); the
+// renumbering's face map names the faces as read.
+TEST(Operators, ShuffledMeshIsRenumberedWithTheSameResults)
+{
+  const lapmesh::Triangle_soup soup = lapmesh::torus(320, 240);  // 76 800 vertices: beyond the caches' share
+  const lapmesh::Triangle_soup mixed = shuffled(soup, 5);
+  const Mesh ordered = to_mesh(soup);
+  Mesh scattered = to_mesh(mixed);
+  using lapmesh::internal::Topology_detail;
+  constexpr auto local = lapmesh::internal::Vertex_order::local_if_scattered;
+  const auto kept = lapmesh::internal::extract_mesh(ordered, CGAL::parameters::default_values(), Topology_detail::corners,
+                                                    false, local);
+  EXPECT_TRUE(kept.face.empty() && kept.rows_are_topology_vertices()) << "a torus in its own order was renumbered";
+  const auto renumbered =
+    lapmesh::internal::extract_mesh(scattered, CGAL::parameters::default_values(), Topology_detail::corners, false, local);
+  ASSERT_EQ(renumbered.face.size(), mixed.triangles.size()) << "the shuffled torus was not renumbered";
+  ASSERT_EQ(renumbered.row.size(), mixed.points.size());
+  for(std::size_t f = 0; f < renumbered.face.size(); ++f)
+    for(int c = 0; c < 3; ++c)
+      ASSERT_EQ(renumbered.row[std::size_t(renumbered.topology.triangles[3 * f + std::size_t(c)])],
+                mixed.triangles[std::size_t(renumbered.face[f])][std::size_t(c)])
+        << "topology face " << f;
+  const auto pattern =
+    lapmesh::internal::extract_mesh(scattered, CGAL::parameters::default_values(), Topology_detail::pattern, false, local);
+  EXPECT_TRUE(pattern.face.empty() && pattern.rows_are_topology_vertices()) << "a pattern's rows are its results'";
+
+  // Row of each shuffled vertex in the ordered torus, by position (the torus's are distinct).
+  std::map<std::array<double, 3>, int> ordered_row;
+  for(std::size_t i = 0; i < soup.points.size(); ++i) ordered_row[soup.points[i]] = int(i);
+  std::vector<int> same(mixed.points.size());
+  for(std::size_t i = 0; i < mixed.points.size(); ++i) same[i] = ordered_row.at(mixed.points[i]);
+  // The angle deficit is 2 pi less a vertex's angles, nearly as large: its rounding, relative to
+  // K, is about 2 pi / (K A) times larger than the angles' (1e5 on this torus).
+  const auto expect_same = [&](const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, const std::string& what,
+                               double relative = 1e-12) {
+    ASSERT_EQ(a.rows(), Eigen::Index(soup.points.size())) << what;
+    ASSERT_EQ(b.rows(), a.rows()) << what;
+    const double scale = a.cwiseAbs().maxCoeff();
+    double worst = 0;
+    for(Eigen::Index i = 0; i < b.rows(); ++i) worst = std::max(worst, (b.row(i) - a.row(same[std::size_t(i)])).cwiseAbs().maxCoeff());
+    EXPECT_LE(worst, relative * scale) << what;
+  };
+  for(const bool parallel : {false, true}) {
+    const std::string tag = parallel ? " (parallel)" : "";
+    const auto a = parallel ? lapmesh::vertex_curvatures<CGAL::Parallel_tag>(ordered) : lapmesh::vertex_curvatures(ordered);
+    const auto b = parallel ? lapmesh::vertex_curvatures<CGAL::Parallel_tag>(scattered) : lapmesh::vertex_curvatures(scattered);
+    expect_same(a.mean, b.mean, "mean curvature" + tag);
+    expect_same(a.gaussian, b.gaussian, "Gaussian curvature" + tag, 1e-10);
+    expect_same(a.k1, b.k1, "k1" + tag, 1e-10);
+    expect_same(a.k2, b.k2, "k2" + tag, 1e-10);
+    expect_same(a.area, b.area, "areas" + tag);
+    expect_same(a.normal, b.normal, "normals" + tag);
+    expect_same(a.laplacian, b.laplacian, "Laplacian of the positions" + tag);
+  }
+  expect_same(lapmesh::vertex_areas(ordered, LP::vertex_area(lapmesh::Vertex_area::mixed)),
+              lapmesh::vertex_areas(scattered, LP::vertex_area(lapmesh::Vertex_area::mixed)), "mixed areas");
+  // A vertex in no face, last among the rows: NaN curvature and zero area there, the rest as before.
+  Mesh with_isolated = scattered;
+  with_isolated.add_vertex(Point(0.1, 0.2, 0.3));
+  const auto lonely = lapmesh::vertex_curvatures(with_isolated);
+  const Eigen::Index last = Eigen::Index(mixed.points.size());
+  ASSERT_EQ(lonely.mean.size(), last + 1);
+  EXPECT_TRUE(std::isnan(lonely.mean[last]) && std::isnan(lonely.gaussian[last]));
+  EXPECT_EQ(lonely.area[last], 0.0);
+  expect_same(lapmesh::vertex_curvatures(ordered).mean, lonely.mean.head(last), "mean curvature beside a vertex in no face");
+
+  auto gaussian = scattered.add_property_map<Mesh::Vertex_index, double>("v:K", 0.0).first;
+  lapmesh::compute_gaussian_curvature(scattered, gaussian);
+  Eigen::VectorXd from_map(scattered.number_of_vertices());
+  for(auto v : scattered.vertices()) from_map[Eigen::Index(std::size_t(v))] = gaussian[v];
+  expect_same(lapmesh::vertex_curvatures(ordered).gaussian, from_map, "Gaussian curvature into a property map", 1e-10);
 }
 
 // A Surface_mesh without removed elements is read by index (in parallel where asked): the

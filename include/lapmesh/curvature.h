@@ -160,13 +160,14 @@ auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_
   // The cotangent sums and the angles need the corners only; the uniform Laplacian walks the
   // pattern's rows and the intrinsic triangulation flips its edges.
   const Laplacian laplacian = choose_laplacian(np);
-  auto mesh = extract_mesh(tm, np, laplacian == Laplacian::cotangent ? Topology_detail::corners : Topology_detail::pattern,
-                           is_parallel<ConcurrencyTag>());
+  const bool cotangent = laplacian == Laplacian::cotangent;
+  auto mesh = extract_mesh(tm, np, cotangent ? Topology_detail::corners : Topology_detail::pattern,
+                           is_parallel<ConcurrencyTag>(), cotangent ? Vertex_order::local_if_scattered : Vertex_order::as_read);
   Vertex_curvatures c = mesh.naming_input_vertices([&] {
     return compute_curvatures(mesh.topology, mesh.positions, laplacian, choose_vertex_area(np), with_gaussian,
                               is_parallel<ConcurrencyTag>(), choose_mollification(np));
   });
-  if(mesh.num_rows_in_no_face() > 0) {  // curvature is undefined there: NaN, and a zero area
+  if(!mesh.rows_are_topology_vertices()) {  // renumbered, or rows in no face: NaN there, and a zero area
     const double nan = std::numeric_limits<double>::quiet_NaN();
     c.mean = mesh.to_rows(c.mean, nan);
     c.area = mesh.to_rows(c.area, 0.0);

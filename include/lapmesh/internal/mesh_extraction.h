@@ -31,9 +31,11 @@
 #include <CGAL/boost/graph/properties.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -82,33 +84,42 @@ struct Extracted_mesh
   Positions positions;                        ///< per topology vertex
   Working_array<vertex_descriptor> vertices;  ///< the first vertex of each topology vertex
   Index num_rows = 0;                         ///< rows of the numbering (results' size)
-  /// The row of each topology vertex, increasing; empty when every row is in a face (the
-  /// identity).
+  /// The row of each topology vertex; empty when topology vertex i is row i. Increasing (rows
+  /// in no face left out) unless the vertices were renumbered for locality (a corners-only
+  /// extraction of a mesh in scattered order, extract_mesh()).
   std::vector<Index> row;
+  /// The face, in the order read, of each topology face; empty when that order was kept.
+  std::vector<Index> face;
   /// Every vertex with its row, in `vertices(tm)` order.
   Working_array<std::pair<vertex_descriptor, Index>> vertex_rows;
 
   Index num_rows_in_no_face() const { return row.empty() ? 0 : num_rows - Index(row.size()); }
+  /// Whether per-topology-vertex values are already per row (to_rows() returns them as they are).
+  bool rows_are_topology_vertices() const { return row.empty(); }
 
-  /// `error` with the topology vertex it names replaced by its row, the input's index.
+  /// `error` with the topology vertex or face it names replaced by the input's (its row, or
+  /// its place in the order read).
   Mesh_error in_rows(const Mesh_error& error) const
   {
-    if(row.empty() || error.element() != Mesh_error::Element::vertex || error.index() < 0 ||
-       error.index() >= std::int64_t(row.size()))
+    const bool is_vertex = error.element() == Mesh_error::Element::vertex;
+    const std::vector<Index>& input = is_vertex ? row : face;
+    if(input.empty() || (!is_vertex && error.element() != Mesh_error::Element::face) || error.index() < 0 ||
+       error.index() >= std::int64_t(input.size()))
       return error;
-    const std::int64_t input_index = row[std::size_t(error.index())];
+    const std::int64_t input_index = input[std::size_t(error.index())];
+    const std::string kind = is_vertex ? "vertex " : "face ";
     std::string what = error.what();
-    const std::string named = "vertex " + std::to_string(error.index());
+    const std::string named = kind + std::to_string(error.index());
     for(std::size_t at = what.find(named); at != std::string::npos; at = what.find(named, at + 1))
       if(at + named.size() == what.size() || !std::isdigit(static_cast<unsigned char>(what[at + named.size()]))) {
-        what.replace(at, named.size(), "vertex " + std::to_string(input_index));
+        what.replace(at, named.size(), kind + std::to_string(input_index));
         break;
       }
-    return Mesh_error(what, Mesh_error::Element::vertex, input_index);
+    return Mesh_error(what, error.element(), input_index);
   }
 
-  /// Returns f(); a Mesh_error from it that names a topology vertex names the input's instead
-  /// (in_rows()): the computations on the topology know only its numbering.
+  /// Returns f(); a Mesh_error from it that names a topology vertex or face names the input's
+  /// instead (in_rows()): the computations on the topology know only its numbering.
   template <typename F>
   decltype(auto) naming_input_vertices(F&& f) const
   {
@@ -150,7 +161,8 @@ struct Extracted_mesh
     return out;
   }
   /// Turns a matrix over the topology's vertices into the same one over the rows (zero in
-  /// rows in no face), in place. `row` is increasing, so each column keeps its entries in
+  /// rows in no face), in place. `row` is increasing (a pattern extraction is never renumbered
+  /// for locality), so each column keeps its entries in
   /// order: only their rows change, and the columns of rows in no face are empty. The entries
   /// are not copied (Eigen 3.4 would copy a returned SparseMatrix: fresh pages for all of it).
   void move_to_rows(Eigen::SparseMatrix<double>& A) const
@@ -335,10 +347,132 @@ Extracted_arrays<TriangleMesh> extract_arrays(const TriangleMesh& tm, const Name
   }
 }
 
+/// Whether the rows of the faces lie as scattered as in a shuffled mesh: then nearly every
+/// corner of a pass over the faces misses the caches. Measured on a sample: the distinct blocks
+/// of 64 rows among the corners of 64 consecutive faces, every 4096 faces; a shuffled mesh
+/// shows nearly 192, meshes as subdivided, scanned or reordered show a half or less. Meshes of
+/// fewer rows fit the caches in any order.
+inline bool rows_are_scattered(const Working_array<Index>& triangles, Index num_rows)
+{
+  constexpr Index window = 64, stride = 4096, block_shift = 6, min_rows = Index(1) << 16;
+  const Index faces = Index(triangles.size() / 3);
+  if(num_rows < min_rows || faces < window) return false;
+  std::array<Index, 3 * window> blocks;
+  long long distinct = 0, windows = 0;
+  for(Index first = 0; first + window <= faces; first += stride, ++windows) {
+    for(Index c = 0; c < 3 * window; ++c) blocks[std::size_t(c)] = triangles[std::size_t(3 * first + c)] >> block_shift;
+    std::sort(blocks.begin(), blocks.end());
+    distinct += std::unique(blocks.begin(), blocks.end()) - blocks.begin();
+  }
+  return 3 * distinct >= 2 * 3 * window * windows;  // two thirds of the most possible
+}
+
+/// The rows numbered along a Morton curve of their positions (the order of the cells of an
+/// octree of the bounding box): rows close in space get close numbers. Returns the number of
+/// each row, a permutation.
+inline std::vector<Index> locality_numbering(const Positions& positions)
+{
+  const Index n = Index(positions.rows());
+  const Eigen::RowVector3d lo = positions.colwise().minCoeff(), hi = positions.colwise().maxCoeff();
+  // 21 bits per axis; the cells of the code's top 32 bits (about 10 levels of the octree) are
+  // small beside a mesh's extent, and their order inside is the rows' own.
+  const double extent = (hi - lo).maxCoeff(), cells = double((1 << 21) - 1);
+  const double scale = extent > 0 ? cells / extent : 0.0;
+  const auto spread = [](std::uint64_t x) {  // bit i of x to bit 3i
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    return (x | x << 2) & 0x1249249249249249ULL;
+  };
+  const auto cell = [&](Index r, int axis) {
+    const double t = (positions(r, axis) - lo[axis]) * scale;
+    return std::uint64_t(t > 0 ? std::min(cells, t) : 0.0);
+  };
+  std::vector<std::uint32_t> key(static_cast<std::size_t>(n)), key_out(static_cast<std::size_t>(n));
+  std::vector<Index> rows(static_cast<std::size_t>(n)), rows_out(static_cast<std::size_t>(n));
+  for(Index r = 0; r < n; ++r) {
+    key[std::size_t(r)] = std::uint32_t((spread(cell(r, 0)) | spread(cell(r, 1)) << 1 | spread(cell(r, 2)) << 2) >> 31);
+    rows[std::size_t(r)] = r;
+  }
+  // Least significant digit first, 8 bits at a time: stable, so equal keys keep row order.
+  for(int shift = 0; shift < 32; shift += 8) {
+    std::array<std::size_t, 257> start{};
+    for(const std::uint32_t k : key) ++start[((k >> shift) & 255) + 1];
+    for(int d = 0; d < 256; ++d) start[std::size_t(d) + 1] += start[std::size_t(d)];
+    for(std::size_t i = 0; i < key.size(); ++i) {
+      const std::size_t at = start[(key[i] >> shift) & 255]++;
+      key_out[at] = key[i];
+      rows_out[at] = rows[i];
+    }
+    key.swap(key_out);
+    rows.swap(rows_out);
+  }
+  std::vector<Index>& number = rows_out;  // reused: the inverse of the sorted rows
+  for(Index i = 0; i < n; ++i) number[std::size_t(rows[std::size_t(i)])] = i;
+  return std::move(number);
+}
+
+/// Renumbers an extraction's rows along a Morton curve (locality_numbering()), leaving out
+/// those in no face, and orders its faces by their lowest vertex: `out`'s positions, vertices,
+/// `row` and `face`; returns the triangles in the new numbers and order.
+template <typename TriangleMesh>
+Working_array<Index> renumber_for_locality(Extracted_arrays<TriangleMesh>& arrays, Extracted_mesh<TriangleMesh>& out)
+{
+  const Index n = Index(arrays.positions.rows()), faces = Index(arrays.triangles.size() / 3);
+  std::vector<Index> number = locality_numbering(arrays.positions);
+  std::vector<Index> in_face(std::size_t(n), 0);  // then the new number of the rows in a face
+  for(Index& v : arrays.triangles) {
+    v = number[std::size_t(v)];
+    in_face[std::size_t(v)] = 1;
+  }
+  Index used = 0;
+  for(Index& flag : in_face) flag = flag ? used++ : -1;
+  if(used < n) {
+    for(Index& v : arrays.triangles) v = in_face[std::size_t(v)];
+    for(Index& v : number) v = in_face[std::size_t(v)];
+  }
+  out.row.resize(std::size_t(used));
+  out.positions.resize(used, 3);
+  out.vertices.resize(std::size_t(used));
+  for(Index r = 0; r < n; ++r)
+    if(const Index v = number[std::size_t(r)]; v >= 0) {
+      out.row[std::size_t(v)] = r;
+      out.positions.row(v) = arrays.positions.row(r);
+      out.vertices[std::size_t(v)] = arrays.vertices[std::size_t(r)];
+    }
+  // The faces by their lowest vertex, by counting (stable: the order read breaks ties).
+  std::vector<Index>& start = in_face;  // reused
+  start.assign(std::size_t(used) + 1, 0);
+  const auto lowest = [&](Index f) {
+    const Index* t = &arrays.triangles[std::size_t(3 * f)];
+    return std::min({t[0], t[1], t[2]});
+  };
+  for(Index f = 0; f < faces; ++f) ++start[std::size_t(lowest(f)) + 1];
+  for(Index v = 0; v < used; ++v) start[std::size_t(v) + 1] += start[std::size_t(v)];
+  Working_array<Index> triangles(arrays.triangles.size());
+  out.face.resize(std::size_t(faces));
+  for(Index f = 0; f < faces; ++f) {
+    const Index at = start[std::size_t(lowest(f))]++;
+    out.face[std::size_t(at)] = f;
+    std::copy_n(&arrays.triangles[std::size_t(3 * f)], 3, &triangles[std::size_t(3 * at)]);
+  }
+  return triangles;
+}
+
 /// How much of the topology an extraction builds: the sparsity pattern and its edge slots
 /// (every operator), or the corners alone (build_corner_topology(): angles, areas and their
 /// gathers).
 enum class Topology_detail { pattern, corners };
+
+/// The order of a corners-only extraction's vertices and faces.
+enum class Vertex_order {
+  as_read,            ///< the rows' order, and the faces as read
+  local_if_scattered  ///< renumbered for locality where rows_are_scattered(): worth it for the
+                      ///< mean curvature's passes, not for the Gaussian curvature's alone
+                      ///< (doc/benchmarks.md, "Vertex and face order")
+};
 
 /// Extracts the connectivity and positions of `tm` (named parameters: vertex_point_map,
 /// vertex_index_map), over the rows that are in a face. Throws Mesh_error on non-triangle
@@ -346,7 +480,8 @@ enum class Topology_detail { pattern, corners };
 /// `parallel` (CGAL::Parallel_tag): the reading and the topology in parallel, same result.
 template <typename TriangleMesh, typename NamedParameters>
 Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedParameters& np,
-                                          Topology_detail detail = Topology_detail::pattern, bool parallel = false)
+                                          Topology_detail detail = Topology_detail::pattern, bool parallel = false,
+                                          Vertex_order order = Vertex_order::as_read)
 {
   const auto topology = [detail, parallel](Index n, Working_array<Index>&& triangles, Corner_incidence&& incidence) {
     return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(incidence))
@@ -358,6 +493,19 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
   out.num_rows = n;
   out.vertex_rows = std::move(arrays.vertex_rows);
   if(arrays.triangles.empty()) throw Mesh_error("the mesh has no faces");
+  if(detail == Topology_detail::corners && order == Vertex_order::local_if_scattered &&
+     rows_are_scattered(arrays.triangles, n)) {
+    // A shuffled mesh: the passes over its corners would miss the caches at nearly every
+    // corner. Its vertices are numbered along a Morton curve and its faces ordered by their
+    // lowest vertex; the results go back to the rows through `row` (to_rows()). A pattern's
+    // matrices are results themselves, over the rows: that extraction keeps their order.
+    Working_array<Index> triangles = renumber_for_locality(arrays, out);
+    Working_array<Index>().swap(arrays.triangles);  // to the cache, for the topology's arrays
+    const Index used = Index(out.row.size());
+    Corner_incidence incidence = sort_corners_by_vertex(used, triangles, parallel);
+    out.topology = topology(used, std::move(triangles), std::move(incidence));
+    return out;
+  }
   // The corner lists that the topology starts from also tell which rows are in no face.
   Corner_incidence incidence = sort_corners_by_vertex(n, arrays.triangles, parallel);
   if(incidence.first_vertex_in_no_face(parallel) < 0) {
