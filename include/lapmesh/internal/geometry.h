@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <type_traits>
@@ -32,6 +33,51 @@ namespace internal {
 
 /// n x 3 vertex positions; row-major so that a vertex's coordinates are contiguous.
 using Positions = Vertex_vectors;
+
+using Point3 = Eigen::Vector3d;
+
+struct Box3
+{
+  Point3 lo = Point3::Constant(std::numeric_limits<double>::infinity());
+  Point3 hi = Point3::Constant(-std::numeric_limits<double>::infinity());
+
+  void extend(const Point3& p)
+  {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void extend(const Box3& b)
+  {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+  Point3 center() const { return 0.5 * (lo + hi); }
+  double squared_distance(const Point3& p) const
+  {
+    return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).squaredNorm();
+  }
+};
+
+// The position of a point of `box` along a Morton curve of 2^21 cells a side.
+inline std::uint64_t morton_code(const Point3& p, const Box3& box)
+{
+  const auto spread = [](std::uint64_t x) {  // the 21 low bits of x to every third bit
+    x &= 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+  };
+  std::uint64_t code = 0;
+  for(int k = 0; k < 3; ++k) {
+    const double extent = box.hi[k] - box.lo[k];
+    const double u = extent > 0 ? (p[k] - box.lo[k]) / extent : 0.0;
+    code |= spread(std::uint64_t((u > 0 ? std::min(u, 1.0) : 0.0) * 2097151.0)) << k;  // NaN: cell 0
+  }
+  return code;
+}
 
 /// The corner cotangents of a mesh and the per-vertex sums of its corners' geometry.
 struct Corner_geometry

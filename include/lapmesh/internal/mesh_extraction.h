@@ -373,27 +373,14 @@ inline bool rows_are_scattered(const Working_array<Index>& triangles, Index num_
 inline std::vector<Index> locality_numbering(const Positions& positions)
 {
   const Index n = Index(positions.rows());
-  const Eigen::RowVector3d lo = positions.colwise().minCoeff(), hi = positions.colwise().maxCoeff();
-  // 21 bits per axis; the cells of the code's top 32 bits (about 10 levels of the octree) are
-  // small beside a mesh's extent, and their order inside is the rows' own.
-  const double extent = (hi - lo).maxCoeff(), cells = double((1 << 21) - 1);
-  const double scale = extent > 0 ? cells / extent : 0.0;
-  const auto spread = [](std::uint64_t x) {  // bit i of x to bit 3i
-    x &= 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffULL;
-    x = (x | x << 16) & 0x1f0000ff0000ffULL;
-    x = (x | x << 8) & 0x100f00f00f00f00fULL;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-    return (x | x << 2) & 0x1249249249249249ULL;
-  };
-  const auto cell = [&](Index r, int axis) {
-    const double t = (positions(r, axis) - lo[axis]) * scale;
-    return std::uint64_t(t > 0 ? std::min(cells, t) : 0.0);
-  };
+  Box3 box;
+  for(Index r = 0; r < n; ++r) box.extend(positions.row(r).transpose());
+  // The code's top 32 bits (about 10 levels of the octree): cells small beside a mesh's extent,
+  // inside which the rows keep their own order.
   std::vector<std::uint32_t> key(static_cast<std::size_t>(n)), key_out(static_cast<std::size_t>(n));
   std::vector<Index> rows(static_cast<std::size_t>(n)), rows_out(static_cast<std::size_t>(n));
   for(Index r = 0; r < n; ++r) {
-    key[std::size_t(r)] = std::uint32_t((spread(cell(r, 0)) | spread(cell(r, 1)) << 1 | spread(cell(r, 2)) << 2) >> 31);
+    key[std::size_t(r)] = std::uint32_t(morton_code(positions.row(r).transpose(), box) >> 31);
     rows[std::size_t(r)] = r;
   }
   // Least significant digit first, 8 bits at a time: stable, so equal keys keep row order.
@@ -412,6 +399,23 @@ inline std::vector<Index> locality_numbering(const Positions& positions)
   std::vector<Index>& number = rows_out;  // reused: the inverse of the sorted rows
   for(Index i = 0; i < n; ++i) number[std::size_t(rows[std::size_t(i)])] = i;
   return std::move(number);
+}
+
+/// Takes into `out` the `used` rows that `topology_vertex` numbers (the others are -1): the
+/// positions, first vertices and `row` of each topology vertex.
+template <typename TriangleMesh>
+void take_rows(const Extracted_arrays<TriangleMesh>& arrays, const std::vector<Index>& topology_vertex, Index used,
+               Extracted_mesh<TriangleMesh>& out)
+{
+  out.row.resize(std::size_t(used));
+  out.positions.resize(used, 3);
+  out.vertices.resize(std::size_t(used));
+  for(Index r = 0; r < Index(topology_vertex.size()); ++r)
+    if(const Index v = topology_vertex[std::size_t(r)]; v >= 0) {
+      out.row[std::size_t(v)] = r;
+      out.positions.row(v) = arrays.positions.row(r);
+      out.vertices[std::size_t(v)] = arrays.vertices[std::size_t(r)];
+    }
 }
 
 /// Renumbers an extraction's rows along a Morton curve (locality_numbering()), leaving out
@@ -433,15 +437,7 @@ Working_array<Index> renumber_for_locality(Extracted_arrays<TriangleMesh>& array
     for(Index& v : arrays.triangles) v = in_face[std::size_t(v)];
     for(Index& v : number) v = in_face[std::size_t(v)];
   }
-  out.row.resize(std::size_t(used));
-  out.positions.resize(used, 3);
-  out.vertices.resize(std::size_t(used));
-  for(Index r = 0; r < n; ++r)
-    if(const Index v = number[std::size_t(r)]; v >= 0) {
-      out.row[std::size_t(v)] = r;
-      out.positions.row(v) = arrays.positions.row(r);
-      out.vertices[std::size_t(v)] = arrays.vertices[std::size_t(r)];
-    }
+  take_rows(arrays, number, used, out);
   // The faces by their lowest vertex, by counting (stable: the order read breaks ties).
   std::vector<Index>& start = in_face;  // reused
   start.assign(std::size_t(used) + 1, 0);
@@ -525,15 +521,7 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
     }
   incidence.corner_begin[std::size_t(used)] = Index(arrays.triangles.size());
   incidence.corner_begin.resize(std::size_t(used) + 1);
-  out.row.resize(used);
-  out.positions.resize(used, 3);
-  out.vertices.resize(used);
-  for(Index r = 0; r < n; ++r)
-    if(topology_vertex[r] >= 0) {
-      out.row[topology_vertex[r]] = r;
-      out.positions.row(topology_vertex[r]) = arrays.positions.row(r);
-      out.vertices[topology_vertex[r]] = arrays.vertices[r];
-    }
+  take_rows(arrays, topology_vertex, used, out);
   for(Index& v : arrays.triangles) v = topology_vertex[v];
   out.topology = topology(used, std::move(arrays.triangles), std::move(incidence));
   return out;

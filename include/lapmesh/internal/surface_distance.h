@@ -28,8 +28,6 @@
 namespace lapmesh {
 namespace internal {
 
-using Point3 = Eigen::Vector3d;
-
 inline double squared_distance_to_segment(const Point3& p, const Point3& a, const Point3& b)
 {
   const Point3 ab = b - a;
@@ -69,49 +67,6 @@ inline double squared_distance_to_triangle(const Point3& p, const Point3& a, con
   const double sum = va + vb + vc, v = vb / sum, w = vc / sum;
   if(!(sum > 0) || !(v >= 0 && w >= 0 && v + w <= 1)) return sides();
   return (ap - v * ab - w * ac).squaredNorm();
-}
-
-struct Box3
-{
-  Point3 lo = Point3::Constant(std::numeric_limits<double>::infinity());
-  Point3 hi = Point3::Constant(-std::numeric_limits<double>::infinity());
-
-  void extend(const Point3& p)
-  {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  void extend(const Box3& b)
-  {
-    lo = lo.cwiseMin(b.lo);
-    hi = hi.cwiseMax(b.hi);
-  }
-  Point3 center() const { return 0.5 * (lo + hi); }
-  double squared_distance(const Point3& p) const
-  {
-    return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).squaredNorm();
-  }
-};
-
-// The position of a point of `box` along a Morton curve of 2^21 cells a side.
-inline std::uint64_t morton_code(const Point3& p, const Box3& box)
-{
-  const auto spread = [](std::uint64_t x) {  // the 21 low bits of x to every third bit
-    x &= 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffULL;
-    x = (x | x << 16) & 0x1f0000ff0000ffULL;
-    x = (x | x << 8) & 0x100f00f00f00f00fULL;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-    x = (x | x << 2) & 0x1249249249249249ULL;
-    return x;
-  };
-  std::uint64_t code = 0;
-  for(int k = 0; k < 3; ++k) {
-    const double extent = box.hi[k] - box.lo[k];
-    const double u = extent > 0 ? (p[k] - box.lo[k]) / extent : 0.0;
-    code |= spread(std::uint64_t((u > 0 ? std::min(u, 1.0) : 0.0) * 2097151.0)) << k;  // NaN: cell 0
-  }
-  return code;
 }
 
 /// A binary hierarchy over items: each node's box holds its items', a leaf holds at most four.
