@@ -421,7 +421,9 @@ struct Spectral_progress
 /// Options of the spectral solver (filled from named parameters by Spectral_basis).
 struct Spectral_options
 {
-  double tolerance = 1e-10;        ///< relative residual: ||A y - theta y|| <= tolerance |theta|
+  double tolerance = 1e-10;        ///< relative residual of the shift-invert operator A:
+                                   ///< ||A y - theta y|| <= tolerance |theta|; it does not bound the
+                                   ///< pencil's ||S phi + lambda M phi|| (doc/spectral.md)
   int max_restarts = 1000;         ///< Lanczos restarts per attempt
   int extra = -1;                  ///< extra pairs for the completeness check; -1: max(6, k/10)
   double shift_factor = 1e-2;      ///< sigma = -shift_factor / sum(M)
