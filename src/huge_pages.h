@@ -1,4 +1,4 @@
-// The command line's restart with transparent huge pages for large inputs.
+// When the command line restarts with transparent huge pages (restart.h does it).
 //
 // A large mesh is processed in large buffers that glibc maps afresh from the kernel; faulting them
 // in 4 KiB pages takes a large share of a run on virtual machines. glibc (2.35 and later) backs
@@ -24,9 +24,8 @@ constexpr std::uintmax_t huge_pages_min_input_bytes = 8u << 20;
 bool huge_pages_restart_wanted(const char* switch_value, const char* tunables, const std::string& thp_mode,
                                std::uintmax_t largest_input);
 
-/// Restarts the program (same arguments) with glibc.malloc.hugetlb=1 when
-/// huge_pages_restart_wanted(); returns, changing nothing, when not or when the restart fails.
-void restart_with_huge_pages_if_useful(int argc, char** argv);
+/// The tunable that huge_pages_restart_wanted() adds to GLIBC_TUNABLES.
+constexpr const char* huge_pages_tunable = "glibc.malloc.hugetlb";
 
 } // namespace lapmesh_cli
 

@@ -2,8 +2,8 @@
 // Every failure is one line on stderr and a non-zero exit: 2 for a usage error, 1 for bad
 // input or a failed computation.
 #include "cli_common.h"
-#include "huge_pages.h"
 #include "operations/heap.h"
+#include "restart.h"
 
 #include <lapmesh/errors.h>
 
@@ -11,7 +11,7 @@
 
 int main(int argc, char** argv)
 {
-  lapmesh_cli::restart_with_huge_pages_if_useful(argc, argv);
+  lapmesh_cli::restart_if_useful(argc, argv);
   lapmesh_ops::keep_heap_between_calls();
   CLI::App app{"lapmesh: Laplacian geometry processing on triangle meshes "
                "(curvature, spectrum, reconstruction, smoothing, noise)"};

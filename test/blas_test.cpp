@@ -1,11 +1,16 @@
 // The slow-BLAS warning (lapmesh/blas.h): `lapmesh spectrum` and `smooth --scheme implicit` print it
 // once on stderr when OpenBLAS is forced to its Prescott kernels on a CPU with AVX2, and not otherwise.
+// When OpenBLAS picked those kernels itself, the CLI restarts with fitting ones (src/restart.h).
+#include "restart.h"
 #include "test_helpers.h"
 
 #include <lapmesh/blas.h>
 #include <lapmesh/io.h>
 
+#include <cstdio>
 #include <cstdlib>
+#include <string>
+#include <vector>
 
 using namespace lapmesh_test;
 
@@ -74,4 +79,51 @@ TEST(Blas, SpectrumWarnsOnceWhenOpenBlasRunsPrescottKernelsOnAnAvx2Cpu)
 
   if(previous) setenv("OPENBLAS_CORETYPE", saved.c_str(), 1);
   else unsetenv("OPENBLAS_CORETYPE");
+}
+
+TEST(Blas, TheCliRestartsWithFittingKernelsWhenOpenBlasPicksSlowOnes)
+{
+  __builtin_cpu_init();
+  if(!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma") || !cli_loads_openblas())
+    GTEST_SKIP() << "needs a CPU with AVX2 and FMA and a CLI linked with OpenBLAS";
+  const std::string in = sphere_file(), out = scratch_dir() + "/blas_restart.csv";
+  const std::string dir = scratch_dir(), err_file = dir + "/blas_restart_stderr.txt";
+  // The stand-in answers "Prescott" unless OPENBLAS_CORETYPE names a core: as an OpenBLAS that
+  // detected Prescott. (A sanitizer's runtime must otherwise come first among the libraries.)
+  const auto run = [&](const std::string& coretype, const std::string& args) {
+    const std::string env = (coretype.empty() ? "env -u OPENBLAS_CORETYPE " : "env OPENBLAS_CORETYPE=" + coretype + " ") +
+                            "LD_PRELOAD=" LAPMESH_FAKE_OPENBLAS_CORE
+                            " ASAN_OPTIONS=\"${ASAN_OPTIONS:+$ASAN_OPTIONS:}verify_asan_link_order=0\" ";
+    const int rc = std::system((env + LAPMESH_CLI + " " + args + " >/dev/null 2>" + err_file).c_str());
+    return Cli_result{WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, "", read_file(err_file)};
+  };
+  // Unset: the CLI restarts with OPENBLAS_CORETYPE=Haswell, which the stand-in then reports, so
+  // the run does not warn; without the restart it would.
+  std::remove(out.c_str());
+  Cli_result r = run("", "spectrum " + in + " -o " + out + " -k 6 -q");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("OpenBLAS"), std::string::npos) << r.err;
+  EXPECT_EQ(read_file(out).rfind("index,eigenvalue\n", 0), 0u);
+  r = run("", "smooth " + in + " -o " + dir + "/blas_restart.off --scheme implicit --lambda auto --iterations 2 -q");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("OpenBLAS"), std::string::npos) << r.err;
+  // A value the user set is kept, and warned about.
+  r = run("Prescott", "spectrum " + in + " -o " + out + " -k 6 -q");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(occurrences(r.err, warning), 1u) << r.err;
+}
+
+TEST(Blas, OnlyTheSubcommandsThatFactoriseRestartForTheBlas)
+{
+  const auto uses = [](std::vector<std::string> words) {
+    std::vector<char*> argv;
+    for(std::string& w : words) argv.push_back(w.data());
+    return lapmesh_cli::subcommand_uses_the_blas(int(argv.size()), argv.data());
+  };
+  for(const char* name : {"spectrum", "reconstruct", "smooth", "denoise-study", "view"})
+    EXPECT_TRUE(uses({"lapmesh", name, "in.off"})) << name;
+  EXPECT_FALSE(uses({"lapmesh", "curvature", "in.off"}));
+  EXPECT_FALSE(uses({"lapmesh", "noise", "spectrum"}));  // a file named like a subcommand
+  EXPECT_FALSE(uses({"lapmesh", "--version"}));
+  EXPECT_FALSE(uses({"lapmesh"}));
 }

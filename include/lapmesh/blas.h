@@ -49,6 +49,53 @@ inline std::optional<std::string> openblas_core_name()
 #endif
 }
 
+namespace internal {
+
+/// What blas_core_warning() and openblas_coretype_that_fits() judge: the loaded OpenBLAS runs
+/// kernels without AVX2 (an old or generic core) on a CPU with AVX2 or AVX-512F.
+struct Slow_openblas
+{
+  std::string core;      ///< openblas_get_corename()
+  bool avx512 = false;   ///< the CPU has AVX-512F
+  bool avx2_fma = false; ///< the CPU has AVX2 and FMA
+  bool dynamic = false;  ///< a DYNAMIC_ARCH build, which reads OPENBLAS_CORETYPE when it loads
+};
+
+inline std::optional<Slow_openblas> slow_openblas()
+{
+#ifdef LAPMESH_BLAS_CHECK
+  const std::optional<std::string> core = openblas_core_name();
+  if(!core) return std::nullopt;
+  __builtin_cpu_init();
+  Slow_openblas slow;
+  slow.core = *core;
+  const bool avx2 = __builtin_cpu_supports("avx2");
+  slow.avx512 = __builtin_cpu_supports("avx512f");
+  slow.avx2_fma = avx2 && __builtin_cpu_supports("fma");
+  if(!avx2 && !slow.avx512) return std::nullopt;
+  // OpenBLAS's x86 cores without AVX2 kernels (its DYNAMIC_ARCH names, compared in lower case).
+  static constexpr std::array<const char*, 20> slow_cores = {
+    "generic", "unknown", "katmai", "coppermine", "northwood", "prescott", "banias", "atom", "core2", "penryn",
+    "dunnington", "nehalem", "sandybridge", "opteron", "opteron(sse3)", "barcelona", "bobcat", "bulldozer",
+    "piledriver", "steamroller"};
+  std::string lower = *core;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if(std::find_if(slow_cores.begin(), slow_cores.end(), [&](const char* s) { return lower == s; }) ==
+     slow_cores.end())
+    return std::nullopt;
+  // OPENBLAS_CORETYPE is read only by a DYNAMIC_ARCH build (openblas_get_config() says which).
+  using Config_function = char* (*)();
+  const auto config = reinterpret_cast<Config_function>(dlsym(RTLD_DEFAULT, "openblas_get_config"));
+  const char* config_text = config ? config() : nullptr;
+  slow.dynamic = config_text && std::string(config_text).find("DYNAMIC_ARCH") != std::string::npos;
+  return slow;
+#else
+  return std::nullopt;
+#endif
+}
+
+} // namespace internal
+
 /// A one-line warning when the loaded OpenBLAS uses kernels without AVX2 (an old or generic core)
 /// on a CPU that has AVX2 or AVX-512F, e.g. "OpenBLAS uses its Prescott kernels on a CPU with
 /// AVX2: set OPENBLAS_CORETYPE=Haswell (or SkylakeX) for full speed"; std::nullopt when the BLAS
@@ -56,37 +103,30 @@ inline std::optional<std::string> openblas_core_name()
 /// meant to be called once at the start of a spectral or implicit run.
 inline std::optional<std::string> blas_core_warning()
 {
-#ifdef LAPMESH_BLAS_CHECK
-  const std::optional<std::string> core = openblas_core_name();
-  if(!core) return std::nullopt;
-  __builtin_cpu_init();
-  const bool avx512 = __builtin_cpu_supports("avx512f");
-  const bool avx2 = __builtin_cpu_supports("avx2");
-  if(!avx2 && !avx512) return std::nullopt;
-  // OpenBLAS's x86 cores without AVX2 kernels (its DYNAMIC_ARCH names, compared in lower case).
-  static constexpr std::array<const char*, 20> slow = {
-    "generic", "unknown", "katmai", "coppermine", "northwood", "prescott", "banias", "atom", "core2", "penryn",
-    "dunnington", "nehalem", "sandybridge", "opteron", "opteron(sse3)", "barcelona", "bobcat", "bulldozer",
-    "piledriver", "steamroller"};
-  std::string lower = *core;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if(std::find_if(slow.begin(), slow.end(), [&](const char* s) { return lower == s; }) == slow.end())
-    return std::nullopt;
-  // OPENBLAS_CORETYPE is read only by a DYNAMIC_ARCH build (openblas_get_config() says which).
-  using Config_function = char* (*)();
-  const auto config = reinterpret_cast<Config_function>(dlsym(RTLD_DEFAULT, "openblas_get_config"));
-  const char* config_text = config ? config() : nullptr;
-  const bool dynamic = config_text && std::string(config_text).find("DYNAMIC_ARCH") != std::string::npos;
-  std::string text = "OpenBLAS uses its " + *core + " kernels on a CPU with " + (avx512 ? "AVX-512" : "AVX2") + ": ";
-  if(dynamic)
-    text += avx512 ? "set OPENBLAS_CORETYPE=SkylakeX (or Haswell) for full speed"
-                   : "set OPENBLAS_CORETYPE=Haswell for full speed";
+  const std::optional<internal::Slow_openblas> slow = internal::slow_openblas();
+  if(!slow) return std::nullopt;
+  std::string text =
+    "OpenBLAS uses its " + slow->core + " kernels on a CPU with " + (slow->avx512 ? "AVX-512" : "AVX2") + ": ";
+  if(slow->dynamic)
+    text += slow->avx512 ? "set OPENBLAS_CORETYPE=SkylakeX (or Haswell) for full speed"
+                         : "set OPENBLAS_CORETYPE=Haswell for full speed";
   else
     text += "use an OpenBLAS built for this CPU or with DYNAMIC_ARCH for full speed";
   return text;
-#else
-  return std::nullopt;
-#endif
+}
+
+/// The OPENBLAS_CORETYPE under which the loaded OpenBLAS would run kernels that fit this CPU, in
+/// the case that blas_core_warning() reports: "Haswell" when the build reads the variable
+/// (DYNAMIC_ARCH) and the CPU has AVX2 and FMA, the instructions of those kernels; std::nullopt
+/// otherwise. OpenBLAS reads the variable when it is loaded, so only a new process can use it
+/// (the command line restarts itself with it). Haswell also on AVX-512 CPUs: it needs no more
+/// than AVX2 and FMA, and for lapmesh's dense work (small blocks) the SkylakeX kernels measured
+/// level with it (doc/benchmarks.md).
+inline std::optional<std::string> openblas_coretype_that_fits()
+{
+  const std::optional<internal::Slow_openblas> slow = internal::slow_openblas();
+  if(!slow || !slow->dynamic || !slow->avx2_fma) return std::nullopt;
+  return std::string("Haswell");
 }
 
 } // namespace lapmesh

@@ -6,10 +6,32 @@ import subprocess
 
 import pytest
 
+
+def _openblas_core_in_use():
+    """The core whose kernels this process's OpenBLAS runs (the one under lapmesh's CHOLMOD),
+    or None when the BLAS is another."""
+    import ctypes
+
+    import lapmesh  # noqa: F401  (loads CHOLMOD and its BLAS, libblas.so.3)
+
+    try:
+        corename = ctypes.CDLL("libblas.so.3").openblas_get_corename
+    except (OSError, AttributeError):
+        return None
+    corename.restype = ctypes.c_char_p
+    return corename().decode().strip() or None
+
+
 # The environment the tests started with: the command line runs in it even after a Dask
 # LocalCluster wrote its workers' settings (OMP_NUM_THREADS=1, ...) into os.environ, so that
-# it uses as many BLAS threads as this process (the thread count changes the rounding).
+# it uses as many BLAS threads as this process (the thread count changes the rounding). It
+# also names the BLAS kernels this process runs: where OpenBLAS picked an old core's, the
+# command line would otherwise restart with newer ones, which round differently.
 START_ENVIRONMENT = dict(os.environ)
+if "OPENBLAS_CORETYPE" not in START_ENVIRONMENT:
+    _core = _openblas_core_in_use()
+    if _core:
+        START_ENVIRONMENT["OPENBLAS_CORETYPE"] = _core
 
 
 def _required_env(name):
