@@ -100,6 +100,10 @@ struct Block_lanczos_options
   double tolerance = 1e-10;      ///< converged when ||A y - theta y|| <= tolerance * |theta|
   int max_restarts = 1000;
   std::uint64_t seed = 0x5eed;   ///< of the random starting block (reproducible runs)
+  /// When the operator works on a permutation of the caller's rows: row i of its vectors is row
+  /// row_order[i] of the caller's (n entries). Random vectors are drawn in the caller's order,
+  /// so that a run gives the same pairs in either order.
+  const int* row_order = nullptr;
   bool by_magnitude = false;     ///< wanted: largest |theta| (interior shift-invert) instead of largest theta
   /// Removes from a vector the part that the operator maps to zero (if it is known): the random
   /// start and refill vectors then carry none of it. Otherwise, once the Krylov space of the rest
@@ -145,9 +149,16 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   advise_huge_pages(V);  // written a block at a time: one fault per 2 MiB instead of per 4 KiB
   MatrixXd T = MatrixXd::Zero(m_max + b, m_max + b);  // V^T A V on the processed columns
   std::mt19937_64 rng(opt.seed);
+  Eigen::VectorXd drawn;
   auto random_unit = [&](Eigen::Ref<Eigen::VectorXd> x) {
     // Uniform in [-1, 1) from the 53 high bits: the same start on every platform.
-    for(Index i = 0; i < n; ++i) x[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
+    if(opt.row_order) {
+      drawn.resize(n);
+      for(Index i = 0; i < n; ++i) drawn[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
+      for(Index i = 0; i < n; ++i) x[i] = drawn[opt.row_order[i]];
+    } else {
+      for(Index i = 0; i < n; ++i) x[i] = double(rng() >> 11) * 0x1.0p-52 - 1.0;
+    }
     if(opt.remove_null_space) opt.remove_null_space(x);
   };
 

@@ -251,28 +251,16 @@ public:
   void scaled_solve(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
                     Eigen::MatrixXd& Y) const
   {
-    const Eigen::Index n = X.rows(), nrhs = X.cols();
     const int* perm = permutation();
-    // The kernels take the values of a row side by side, CHOLMOD a column-major block.
-    const bool by_rows = supernodal_kernels_fit(std::size_t(nrhs));
-    // A row may hold zero columns after the block's (supernodal_row_width()).
-    const Eigen::Index row_step = by_rows ? Eigen::Index(supernodal_row_width(std::size_t(nrhs))) : 1,
-                       column_step = by_rows ? 1 : n;
-    m_rhs.resize(std::size_t(n) * std::size_t(by_rows ? row_step : nrhs));
-    for(Eigen::Index i = 0; i < n; ++i) {
-      for(Eigen::Index j = 0; j < nrhs; ++j)
-        m_rhs[std::size_t(i * row_step + j * column_step)] = scale[perm[i]] * X(perm[i], j);
-      for(Eigen::Index j = nrhs; by_rows && j < row_step; ++j) m_rhs[std::size_t(i * row_step + j)] = 0.0;
-    }
-    if(by_rows) {
-      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
-    } else {
-      solve_in_place(m_rhs.data(), n, nrhs);
-    }
-    Y.resize(n, nrhs);
-    for(Eigen::Index i = 0; i < n; ++i)
-      for(Eigen::Index j = 0; j < nrhs; ++j)
-        Y(perm[i], j) = scale[perm[i]] * m_rhs[std::size_t(i * row_step + j * column_step)];
+    scaled_solve_by_rows([perm](Eigen::Index i) { return Eigen::Index(perm[i]); }, scale, X, Y);
+  }
+  /// scaled_solve() for X and Y in the factor's order (row i is row permutation()[i] of the
+  /// matrix's order) and `scale` in that order too: no rows to gather. A Krylov run that works
+  /// in this order reads its blocks front to back instead of one cache line per value.
+  void scaled_solve_in_factor_order(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                                    Eigen::MatrixXd& Y) const
+  {
+    scaled_solve_by_rows([](Eigen::Index i) { return i; }, scale, X, Y);
   }
 
   /// Solves L L^T X = B in place for a factor in_given_order(): `data` holds the `cols`
@@ -325,6 +313,36 @@ private:
 
   Ordering m_ordering = Ordering::amd;
   double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
+
+  /// Y = D K^-1 D X with row i of the factor's system taken from (and written to) row
+  /// row_of(i) of X, Y and scale.
+  template <typename RowOf>
+  void scaled_solve_by_rows(const RowOf& row_of, const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                            Eigen::MatrixXd& Y) const
+  {
+    const Eigen::Index n = X.rows(), nrhs = X.cols();
+    // The kernels take the values of a row side by side, CHOLMOD a column-major block.
+    const bool by_rows = supernodal_kernels_fit(std::size_t(nrhs));
+    // A row may hold zero columns after the block's (supernodal_row_width()).
+    const Eigen::Index row_step = by_rows ? Eigen::Index(supernodal_row_width(std::size_t(nrhs))) : 1,
+                       column_step = by_rows ? 1 : n;
+    m_rhs.resize(std::size_t(n) * std::size_t(by_rows ? row_step : nrhs));
+    for(Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index r = row_of(i);
+      for(Eigen::Index j = 0; j < nrhs; ++j) m_rhs[std::size_t(i * row_step + j * column_step)] = scale[r] * X(r, j);
+      for(Eigen::Index j = nrhs; by_rows && j < row_step; ++j) m_rhs[std::size_t(i * row_step + j)] = 0.0;
+    }
+    if(by_rows) {
+      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
+    } else {
+      solve_in_place(m_rhs.data(), n, nrhs);
+    }
+    Y.resize(n, nrhs);
+    for(Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index r = row_of(i);
+      for(Eigen::Index j = 0; j < nrhs; ++j) Y(r, j) = scale[r] * m_rhs[std::size_t(i * row_step + j * column_step)];
+    }
+  }
 
   /// A column-major rows x cols block at `data`, as CHOLMOD's dense type (no copy).
   static cholmod_dense dense_view(double* data, Eigen::Index rows, Eigen::Index cols)

@@ -466,6 +466,35 @@ inline void scaled_solve(const Cholmod_supernodal_llt& factor, const Eigen::Vect
 }
 #endif
 
+/// The order of the rows a factor solves in: CHOLMOD's fill-reducing permutation (row i of its
+/// system is row order[i] of the matrix), nullptr for a factor that solves in the matrix's order.
+/// A Krylov run in that order hands the solves their blocks without gathering rows.
+template <typename Factor>
+const int* solve_order(const Factor&)
+{
+  return nullptr;
+}
+/// scaled_solve() for blocks in solve_order(factor), with `scale` in that order.
+template <typename Factor>
+void scaled_solve_in_solve_order(const Factor& factor, const Eigen::VectorXd& scale,
+                                 const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y,
+                                 Eigen::MatrixXd& buffer)
+{
+  scaled_solve(factor, scale, X, Y, buffer);
+}
+#ifdef LAPMESH_HAS_CHOLMOD
+inline const int* solve_order(const Cholmod_supernodal_llt& factor)
+{
+  return factor.permutation();
+}
+inline void scaled_solve_in_solve_order(const Cholmod_supernodal_llt& factor, const Eigen::VectorXd& scale,
+                                        const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y,
+                                        Eigen::MatrixXd&)
+{
+  factor.scaled_solve_in_factor_order(scale, X, Y);
+}
+#endif
+
 /// The block size of a block Lanczos run for m pairs, unless the options set one.
 inline Eigen::Index default_block_size(Eigen::Index m) { return m < 60 ? 4 : 8; }
 
@@ -542,9 +571,19 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
     bo.give_up = [&](const Eigen::VectorXd& theta, int restart) {
       return restart >= watch->patience && crowded_far_from_shift(ascending_lambda(theta), sigma, watch->crowding);
     };
+  // The run works in the order the factor solves in; its vectors are put back in the matrix's
+  // order once, at the end.
+  const int* order = solve_order(factor);
+  Eigen::VectorXd ordered_sqrt_mass;
+  if(order) {
+    ordered_sqrt_mass.resize(n);
+    for(Eigen::Index i = 0; i < n; ++i) ordered_sqrt_mass[i] = sqrt_mass[order[i]];
+  }
+  const Eigen::VectorXd& run_sqrt_mass = order ? ordered_sqrt_mass : sqrt_mass;
+  bo.row_order = order;
   Eigen::MatrixXd rhs;
   auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
-    scaled_solve(factor, sqrt_mass, X, Y, rhs);
+    scaled_solve_in_solve_order(factor, run_sqrt_mass, X, Y, rhs);
   };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
   if(!r.converged) {
@@ -555,7 +594,14 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
     return none;
   }
   const Eigen::VectorXd lambda = (1.0 / r.values.array() + sigma).matrix();
-  Spectral_pairs out = ascending_pairs(lambda, std::move(r.vectors), sqrt_mass);
+  Spectral_pairs out = ascending_pairs(lambda, std::move(r.vectors), run_sqrt_mass);
+  if(order) {  // row i to row order[i], a column at a time: a row of a column-major block is scattered
+    Eigen::VectorXd column(n);
+    for(Eigen::Index j = 0; j < out.vectors.cols(); ++j) {
+      column = out.vectors.col(j);
+      for(Eigen::Index i = 0; i < n; ++i) out.vectors(order[i], j) = column[i];
+    }
+  }
   out.operations = r.operations;
   out.shift = sigma;
   return out;
