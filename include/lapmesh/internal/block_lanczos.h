@@ -206,6 +206,10 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
     // Columns of Q that come from a small R_jj are W's round-off divided by R_jj: not orthogonal
     // to V. Project them out and orthonormalise again; the dropped components are O(eps ||W||).
     for(int pass = 0; pass < 2; ++pass) {
+      // The round-off of the columns that W does not span also carries the null space, and the
+      // refills took some of it when they were made orthogonal to those columns.
+      if(opt.remove_null_space)
+        for(Index j = 0; j < W.cols(); ++j) opt.remove_null_space(Q.col(j));
       Q -= V.leftCols(filled) * (V.leftCols(filled).transpose() * Q);
       Eigen::HouseholderQR<MatrixXd> again(Q);
       const MatrixXd R_again = again.matrixQR().topRows(W.cols()).template triangularView<Eigen::Upper>();
