@@ -411,6 +411,48 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
 #endif
 
 #ifdef LAPMESH_HAS_CHOLMOD
+TEST(Spectral, LapmeshNumericFactorEqualsCholmods)
+{
+  // The Cholesky factor of a matrix in a given order is unique: lapmesh's numeric factorisation
+  // (an L D L^T scaled to L D^1/2) must write CHOLMOD's values into CHOLMOD's factor, on meshes
+  // whose supernodes range from one column to large separators, and CHOLMOD's solve must work
+  // on it.
+  Mesh elephant;
+  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  using Llt = lapmesh::internal::Cholmod_supernodal_llt;
+  for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
+    const auto pencil = lapmesh::laplacian_pencil(m);
+    Eigen::SparseMatrix<double> K = -pencil.stiffness;
+    K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
+    Llt by_cholmod, by_lapmesh;
+    for(Llt* f : {&by_cholmod, &by_lapmesh}) f->set_supernodes(Llt::Supernodes::compact);
+    by_lapmesh.set_numeric(Llt::Numeric::fastest);
+    by_cholmod.compute(K);
+    by_lapmesh.compute(K);
+    ASSERT_EQ(by_cholmod.info(), Eigen::Success);
+    ASSERT_EQ(by_lapmesh.info(), Eigen::Success);
+    EXPECT_FALSE(by_cholmod.factorised_by_lapmesh());
+    EXPECT_TRUE(by_lapmesh.factorised_by_lapmesh());  // small supernodes on these meshes
+    const std::size_t size = by_cholmod.factor()->xsize;
+    ASSERT_EQ(by_lapmesh.factor()->xsize, size);
+    const Eigen::Map<const Eigen::VectorXd> expected(static_cast<const double*>(by_cholmod.factor()->x), Eigen::Index(size));
+    const Eigen::Map<const Eigen::VectorXd> values(static_cast<const double*>(by_lapmesh.factor()->x), Eigen::Index(size));
+    EXPECT_LT((values - expected).cwiseAbs().maxCoeff(), 1e-12 * expected.cwiseAbs().maxCoeff());
+    const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);
+    const Eigen::VectorXd x = by_lapmesh.solve(b);  // CHOLMOD's solve on lapmesh's values
+    EXPECT_LE((K.selfadjointView<Eigen::Lower>() * x - b).norm(), 1e-10 * b.norm() * (1 + x.norm()));
+  }
+  // An indefinite matrix fails as with CHOLMOD's factorisation.
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(40, 30, 1.0, 0.3)));
+  Eigen::SparseMatrix<double> K = -pencil.stiffness;
+  K.diagonal() -= 200.0 / pencil.mass.sum() * pencil.mass;
+  Llt by_lapmesh;
+  by_lapmesh.set_numeric(Llt::Numeric::fastest);
+  by_lapmesh.compute(K);
+  EXPECT_TRUE(by_lapmesh.factorised_by_lapmesh());
+  EXPECT_EQ(by_lapmesh.info(), Eigen::NumericalIssue);
+}
+
 TEST(Spectral, ShiftInvertSolvesInTheFactorsOrderEqualThoseInTheMatrixs)
 {
   // The shift-invert operator in the factor's row order equals the one in the matrix's order,

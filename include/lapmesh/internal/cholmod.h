@@ -33,10 +33,12 @@
 
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/subnormals.h>
+#include <lapmesh/internal/supernodal_ldlt.h>
 #include <lapmesh/internal/supernodal_solve.h>
 
 #include <dlfcn.h>
 
+#include <cmath>
 #include <cstddef>
 #include <cstdlib>
 #include <string>
@@ -168,6 +170,22 @@ public:
                 ///< permuted copies of the matrix, at every factorisation.
   };
 
+  /// Who computes the numeric factor.
+  enum class Numeric {
+    cholmod,  ///< CHOLMOD's supernodal LL^T
+    fastest   ///< where the analysis predicts small supernodes (at most lapmesh_max_flops_per_entry
+              ///< flops per factor entry), lapmesh's supernodal LDL^T (internal/supernodal_ldlt.h)
+              ///< turned into L L^T in CHOLMOD's factor: CHOLMOD calls the BLAS for every
+              ///< supernode, which costs more than the work on small ones. CHOLMOD's otherwise.
+  };
+  /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
+  /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one.
+  static constexpr double lapmesh_max_flops_per_entry = 600;
+  /// Takes effect at the next factorize().
+  void set_numeric(Numeric numeric) { m_numeric = numeric; }
+  /// Whether the last factorize() was lapmesh's (Numeric::fastest chose it).
+  bool factorised_by_lapmesh() const { return m_factorised_by_lapmesh; }
+
   /// How freely columns are merged into supernodes, at the price of explicit zeros in the factor.
   enum class Supernodes {
     merged,  ///< CHOLMOD's default: the largest supernodes, the fastest factorisation
@@ -232,8 +250,14 @@ public:
   }
   void factorize(const MatrixType& A)
   {
-    Serial_openmp_scope serial;
     Subnormals_flushed_scope flushed;
+    m_factorised_by_lapmesh = m_numeric == Numeric::fastest && m_analysisIsOk && m_cholmodFactor->is_super &&
+                              cholmod().fl <= lapmesh_max_flops_per_entry * cholmod().lnz;
+    if(m_factorised_by_lapmesh) {
+      factorize_by_lapmesh(A);
+      return;
+    }
+    Serial_openmp_scope serial;
     Base::factorize(A);
   }
   Cholmod_supernodal_llt& compute(const MatrixType& A)
@@ -302,6 +326,29 @@ public:
   }
 
 private:
+  /// The numeric factor by lapmesh's supernodal L D L^T on CHOLMOD's structure, scaled into
+  /// CHOLMOD's factor as L D^1/2: the state CHOLMOD's own factorisation leaves (a failure at a
+  /// pivot <= 0 included, as CHOLMOD's "not positive definite").
+  void factorize_by_lapmesh(const MatrixType& A)
+  {
+    cholmod_factor* L = m_cholmodFactor;
+    m_factorizationIsOk = true;
+    m_info = Eigen::NumericalIssue;
+    if(L->xtype == CHOLMOD_PATTERN && !cholmod_change_factor(CHOLMOD_REAL, true, true, true, true, L, &cholmod()))
+      return;
+    // Made for each factorisation: its copy of the structure would add to the memory of the
+    // solves that follow.
+    Supernodal_ldlt ldlt(*L);
+    const Eigen::Index n = Eigen::Index(L->n);
+    if(!ldlt.factorize_in(static_cast<double*>(L->x), ldlt.permuted_lower(A), Eigen::VectorXd::Zero(n), 0.0) ||
+       !ldlt.scale_to_cholesky()) {
+      L->minor = 0;  // which pivot failed matters to no caller
+      return;
+    }
+    L->minor = L->n;
+    m_info = Eigen::Success;
+  }
+
   void analyze_once(const MatrixType& A)
   {
     {
@@ -312,6 +359,8 @@ private:
   }
 
   Ordering m_ordering = Ordering::amd;
+  Numeric m_numeric = Numeric::cholmod;
+  bool m_factorised_by_lapmesh = false;
   double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
 
   /// Y = D K^-1 D X with row i of the factor's system taken from (and written to) row

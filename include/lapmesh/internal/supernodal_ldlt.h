@@ -1,5 +1,6 @@
 // lapmesh — a supernodal LDL^T without pivoting, for the inertia of the shifted pencil
-// -S - tau M inside the spectrum (needs LAPMESH_HAS_CHOLMOD).
+// -S - tau M inside the spectrum (needs LAPMESH_HAS_CHOLMOD), and for the shift-invert factor
+// where its supernodes are small (internal/cholmod.h, Cholmod_supernodal_llt::Numeric).
 //
 // Why. The spectral solver certifies its eigenpairs by Sylvester's law of inertia: the number
 // of negative pivots of an LDL^T factorisation of -S - tau M is the number of eigenvalues below
@@ -161,6 +162,23 @@ public:
       X.topRows(ncol).transpose().triangularView<Eigen::UnitUpper>().solveInPlace(x);
     }
     return m_perm.transpose() * m_rhs;
+  }
+
+  /// Turns the last factorisation, L D L^T with D > 0, into the Cholesky factor L D^1/2 in place
+  /// (the layout of a CHOLMOD supernodal L L^T). False, with nothing changed, if a pivot is <= 0.
+  bool scale_to_cholesky()
+  {
+    if(!(m_pivots.array() > 0).all()) return false;
+    for(std::size_t s = 0; s + 1 < m_super.size(); ++s) {
+      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
+      Block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      for(int c = 0; c < ncol; ++c) {
+        const double root = std::sqrt(m_pivots[k1 + c]);
+        X(c, c) = root;  // the unit diagonal of L, which holds the pivot
+        X.col(c).tail(nrow - c - 1) *= root;
+      }
+    }
+    return true;
   }
 
   /// The diagonal D of the last factorisation, in the permuted numbering.
