@@ -15,6 +15,7 @@
 #include <limits>
 #include <optional>
 #include <sstream>
+#include <vector>
 
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
@@ -411,19 +412,39 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
 #endif
 
 #ifdef LAPMESH_HAS_CHOLMOD
+namespace {
+/// A pencil and K = -S - sigma M just below its spectrum, on meshes whose supernodes range from
+/// one column to large separators: a torus and the elephant.
+struct Shift_invert_case
+{
+  lapmesh::Laplacian_pencil pencil;
+  Eigen::SparseMatrix<double> K;
+};
+std::vector<Shift_invert_case> shift_invert_cases()
+{
+  Mesh elephant;
+  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  std::vector<Shift_invert_case> cases;
+  for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
+    Shift_invert_case c;
+    c.pencil = lapmesh::laplacian_pencil(m);
+    c.K = -c.pencil.stiffness;
+    c.K.diagonal() += 1e-2 / c.pencil.mass.sum() * c.pencil.mass;
+    cases.push_back(std::move(c));
+  }
+  return cases;
+}
+} // namespace
+
 TEST(Spectral, LapmeshNumericFactorEqualsCholmods)
 {
   // The Cholesky factor of a matrix in a given order is unique: lapmesh's numeric factorisation
   // (an L D L^T scaled to L D^1/2) must write CHOLMOD's values into CHOLMOD's factor, on meshes
   // whose supernodes range from one column to large separators, and CHOLMOD's solve must work
   // on it.
-  Mesh elephant;
-  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
   using Llt = lapmesh::internal::Cholmod_supernodal_llt;
-  for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
-    const auto pencil = lapmesh::laplacian_pencil(m);
-    Eigen::SparseMatrix<double> K = -pencil.stiffness;
-    K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
+  for(const Shift_invert_case& c : shift_invert_cases()) {
+    const Eigen::SparseMatrix<double>& K = c.K;
     Llt by_cholmod, by_lapmesh;
     for(Llt* f : {&by_cholmod, &by_lapmesh}) f->set_supernodes(Llt::Supernodes::compact);
     by_lapmesh.set_numeric(Llt::Numeric::fastest);
@@ -458,13 +479,10 @@ TEST(Spectral, ShiftInvertSolvesInTheFactorsOrderEqualThoseInTheMatrixs)
   // The shift-invert operator in the factor's row order equals the one in the matrix's order,
   // permuted: for CHOLMOD's solves (1 and 11 columns) and lapmesh's kernels (4), on meshes whose
   // supernodes range from one column to large separators.
-  Mesh elephant;
-  lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
   using Llt = lapmesh::internal::Cholmod_supernodal_llt;
-  for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
-    const auto pencil = lapmesh::laplacian_pencil(m);
-    Eigen::SparseMatrix<double> K = -pencil.stiffness;
-    K.diagonal() += 1e-2 / pencil.mass.sum() * pencil.mass;
+  for(const Shift_invert_case& c : shift_invert_cases()) {
+    const lapmesh::Laplacian_pencil& pencil = c.pencil;
+    const Eigen::SparseMatrix<double>& K = c.K;
     Llt llt;
     llt.set_supernodes(Llt::Supernodes::compact);
     llt.compute(K);
