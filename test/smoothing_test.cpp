@@ -506,11 +506,28 @@ TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
   }
   EXPECT_LE(difference, 1e-13 * largest);
 
-  Eigen::MatrixXd B = Eigen::MatrixXd::Random(nf, 3), X = B;
-  ASSERT_TRUE(given.solve_in_place(X.data(), nf, 3));
+  // lapmesh's numeric factorisation of the block as given (the smoothing solver's choice for
+  // small supernodes) writes the same values into the same factor.
+  Cholmod_supernodal_llt given_by_lapmesh(Cholmod_supernodal_llt::Ordering::given);
+  given_by_lapmesh.set_numeric(Cholmod_supernodal_llt::Numeric::fastest);
+  given_by_lapmesh.compute(in_its_order.matrix());
+  ASSERT_EQ(given_by_lapmesh.info(), Eigen::Success);
+  EXPECT_TRUE(given_by_lapmesh.factorised_by_lapmesh());
+  ASSERT_EQ(given_by_lapmesh.factor()->xsize, given.factor()->xsize);
+  const auto* x_lapmesh = static_cast<const double*>(given_by_lapmesh.factor()->x);
+  double lapmesh_difference = 0;
+  for(std::size_t k = 0; k < given.factor()->xsize; ++k)
+    lapmesh_difference = std::max(lapmesh_difference, std::abs(x_lapmesh[k] - x_given[k]));
+  EXPECT_LE(lapmesh_difference, 1e-12 * largest);
+
   const Eigen::SparseMatrix<double> full = in_its_order.matrix().selfadjointView<Eigen::Lower>();
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(nf, 3);
   const Eigen::MatrixXd reference = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(B);
-  EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff());
+  for(const Cholmod_supernodal_llt* factor : {&given, &given_by_lapmesh}) {
+    Eigen::MatrixXd X = B;
+    ASSERT_TRUE(factor->solve_in_place(X.data(), nf, 3));
+    EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff());
+  }
 }
 
 TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsPerEntry)
@@ -548,6 +565,7 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   {
     std::string ordering;
     double factor_entries = 0;
+    bool factorised_by_lapmesh = false;
     double error = std::numeric_limits<double>::infinity();  // until a solve is compared
   };
   const auto solve = [](const Eigen::SparseMatrix<double>& S, double large_factor_entries) {
@@ -565,6 +583,7 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
     outcome.ordering = solver.ordering();
     outcome.factor_entries = solver.factor_entries();
     if(!solver.factorize(ordered.matrix())) return outcome;
+    outcome.factorised_by_lapmesh = solver.factorised_by_lapmesh();
     const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, 3);
     Eigen::MatrixXd B(n, 3), solution = X;
     ordered.gather(X, B);
@@ -582,6 +601,10 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   EXPECT_EQ(large.ordering, "metis");
   EXPECT_LT(large.factor_entries, 0.85 * by_default.factor_entries);
   EXPECT_EQ(path_large.ordering, "amd");
+  // The numeric factorisation: CHOLMOD's for the grid's large supernodes, lapmesh's for the path's.
+  EXPECT_FALSE(by_default.factorised_by_lapmesh);
+  EXPECT_FALSE(large.factorised_by_lapmesh);
+  EXPECT_TRUE(path_large.factorised_by_lapmesh);
   for(const Outcome* o : {&by_default, &large, &path_large}) EXPECT_LE(o->error, 1e-12) << o->ordering;
 }
 #endif

@@ -173,14 +173,16 @@ public:
   /// Who computes the numeric factor.
   enum class Numeric {
     cholmod,  ///< CHOLMOD's supernodal LL^T
-    fastest   ///< where the analysis predicts small supernodes (at most lapmesh_max_flops_per_entry
-              ///< flops per factor entry), lapmesh's supernodal LDL^T (internal/supernodal_ldlt.h)
-              ///< turned into L L^T in CHOLMOD's factor: CHOLMOD calls the BLAS for every
-              ///< supernode, which costs more than the work on small ones. CHOLMOD's otherwise.
+    fastest   ///< where the analysis predicts small supernodes (at most
+              ///< lapmesh_max_flops_per_entry() flops per factor entry), lapmesh's supernodal
+              ///< LDL^T (internal/supernodal_ldlt.h) turned into L L^T in CHOLMOD's factor:
+              ///< CHOLMOD calls the BLAS for every supernode, which costs more than the work on
+              ///< small ones. CHOLMOD's otherwise.
   };
   /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
-  /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one.
-  static constexpr double lapmesh_max_flops_per_entry = 600;
+  /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
+  /// supernodes are larger for the same flops: the bar is lower for them.
+  double lapmesh_max_flops_per_entry() const { return m_supernodes == Supernodes::compact ? 600 : 300; }
   /// Takes effect at the next factorize().
   void set_numeric(Numeric numeric) { m_numeric = numeric; }
   /// Whether the last factorize() was lapmesh's (Numeric::fastest chose it).
@@ -202,6 +204,7 @@ public:
   /// Takes effect at the next analyzePattern().
   void set_supernodes(Supernodes supernodes)
   {
+    m_supernodes = supernodes;
     // CHOLMOD merges two adjacent supernodes of ns columns in all when ns <= nrelax[0], when no
     // zero is added, or when the merged share of zeros is below zrelax[0] (ns <= nrelax[1]),
     // zrelax[1] (ns <= nrelax[2]) or zrelax[2].
@@ -252,7 +255,7 @@ public:
   {
     Subnormals_flushed_scope flushed;
     m_factorised_by_lapmesh = m_numeric == Numeric::fastest && m_analysisIsOk && m_cholmodFactor->is_super &&
-                              cholmod().fl <= lapmesh_max_flops_per_entry * cholmod().lnz;
+                              cholmod().fl <= lapmesh_max_flops_per_entry() * cholmod().lnz;
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
       return;
@@ -340,8 +343,10 @@ private:
     // solves that follow.
     Supernodal_ldlt ldlt(*L);
     const Eigen::Index n = Eigen::Index(L->n);
-    if(!ldlt.factorize_in(static_cast<double*>(L->x), ldlt.permuted_lower(A), Eigen::VectorXd::Zero(n), 0.0) ||
-       !ldlt.scale_to_cholesky()) {
+    const bool factorised = in_given_order() ? ldlt.factorize_in(static_cast<double*>(L->x), A, Eigen::VectorXd::Zero(n), 0.0)
+                                             : ldlt.factorize_in(static_cast<double*>(L->x), ldlt.permuted_lower(A),
+                                                                 Eigen::VectorXd::Zero(n), 0.0);
+    if(!factorised || !ldlt.scale_to_cholesky()) {
       L->minor = 0;  // which pivot failed matters to no caller
       return;
     }
@@ -360,6 +365,7 @@ private:
 
   Ordering m_ordering = Ordering::amd;
   Numeric m_numeric = Numeric::cholmod;
+  Supernodes m_supernodes = Supernodes::merged;
   bool m_factorised_by_lapmesh = false;
   double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
 

@@ -175,6 +175,9 @@ public:
   {
 #ifdef LAPMESH_HAS_CHOLMOD
     m_cholmod = use_cholmod;
+    // A smoothing run factorises a new matrix at every step: lapmesh's numeric factorisation
+    // where the supernodes are small (Cholmod_supernodal_llt::Numeric).
+    m_chol.set_numeric(Cholmod_supernodal_llt::Numeric::fastest);
 #else
     (void)use_cholmod;
 #endif
@@ -249,6 +252,15 @@ public:
     (void)A;
 #endif
   }
+  /// Whether the last factorize() was lapmesh's numeric factorisation on CHOLMOD's analysis.
+  bool factorised_by_lapmesh() const
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    return m_cholmod && !m_external.factor && m_chol.factorised_by_lapmesh();
+#else
+    return false;
+#endif
+  }
   /// False if the matrix is not (numerically) positive definite; failure() then says why.
   bool factorize(const SpMat& A)
   {
@@ -264,8 +276,11 @@ public:
       last_cholmod_message().clear();
       m_chol.factorize(A);
       if(m_chol.info() == Eigen::Success) return true;
-      m_failure = "CHOLMOD " + (last_cholmod_message().empty() ? std::string("reported a numerical issue")
-                                                                 : last_cholmod_message());
+      if(m_chol.factorised_by_lapmesh())
+        m_failure = "the supernodal LDL^T on CHOLMOD's analysis found a pivot <= 0: not positive definite";
+      else
+        m_failure = "CHOLMOD " + (last_cholmod_message().empty() ? std::string("reported a numerical issue")
+                                                                   : last_cholmod_message());
       return false;
     }
 #endif
