@@ -97,8 +97,8 @@ TEST(Blas, TheCliRestartsWithFittingKernelsWhenOpenBlasPicksSlowOnes)
     const int rc = std::system((env + LAPMESH_CLI + " " + args + " >/dev/null 2>" + err_file).c_str());
     return Cli_result{WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, "", read_file(err_file)};
   };
-  // Unset: the CLI restarts with OPENBLAS_CORETYPE=Haswell, which the stand-in then reports, so
-  // the run does not warn; without the restart it would.
+  // Unset: the CLI restarts with OPENBLAS_CORETYPE=SkylakeX or Haswell (as the CPU has AVX-512 or
+  // not), which the stand-in then reports, so the run does not warn; without the restart it would.
   std::remove(out.c_str());
   Cli_result r = run("", "spectrum " + in + " -o " + out + " -k 6 -q");
   EXPECT_EQ(r.status, 0) << r.err;

@@ -58,6 +58,7 @@ struct Slow_openblas
   std::string core;      ///< openblas_get_corename()
   bool avx512 = false;   ///< the CPU has AVX-512F
   bool avx2_fma = false; ///< the CPU has AVX2 and FMA
+  bool skylakex = false; ///< the CPU has what OpenBLAS's SkylakeX kernels use: AVX-512 F, CD, BW, DQ, VL
   bool dynamic = false;  ///< a DYNAMIC_ARCH build, which reads OPENBLAS_CORETYPE when it loads
 };
 
@@ -72,6 +73,9 @@ inline std::optional<Slow_openblas> slow_openblas()
   const bool avx2 = __builtin_cpu_supports("avx2");
   slow.avx512 = __builtin_cpu_supports("avx512f");
   slow.avx2_fma = avx2 && __builtin_cpu_supports("fma");
+  slow.skylakex = slow.avx2_fma && slow.avx512 && __builtin_cpu_supports("avx512cd") &&
+                  __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq") &&
+                  __builtin_cpu_supports("avx512vl");
   if(!avx2 && !slow.avx512) return std::nullopt;
   // OpenBLAS's x86 cores without AVX2 kernels (its DYNAMIC_ARCH names, compared in lower case).
   static constexpr std::array<const char*, 20> slow_cores = {
@@ -108,25 +112,24 @@ inline std::optional<std::string> blas_core_warning()
   std::string text =
     "OpenBLAS uses its " + slow->core + " kernels on a CPU with " + (slow->avx512 ? "AVX-512" : "AVX2") + ": ";
   if(slow->dynamic)
-    text += slow->avx512 ? "set OPENBLAS_CORETYPE=SkylakeX (or Haswell) for full speed"
-                         : "set OPENBLAS_CORETYPE=Haswell for full speed";
+    text += slow->skylakex ? "set OPENBLAS_CORETYPE=SkylakeX (or Haswell) for full speed"
+                           : "set OPENBLAS_CORETYPE=Haswell for full speed";
   else
     text += "use an OpenBLAS built for this CPU or with DYNAMIC_ARCH for full speed";
   return text;
 }
 
 /// The OPENBLAS_CORETYPE under which the loaded OpenBLAS would run kernels that fit this CPU, in
-/// the case that blas_core_warning() reports: "Haswell" when the build reads the variable
-/// (DYNAMIC_ARCH) and the CPU has AVX2 and FMA, the instructions of those kernels; std::nullopt
-/// otherwise. OpenBLAS reads the variable when it is loaded, so only a new process can use it
-/// (the command line restarts itself with it). Haswell also on AVX-512 CPUs: it needs no more
-/// than AVX2 and FMA, and for lapmesh's dense work (small blocks) the SkylakeX kernels measured
-/// level with it (doc/benchmarks.md).
+/// the case that blas_core_warning() reports, when the build reads the variable (DYNAMIC_ARCH):
+/// "SkylakeX" on a CPU with the AVX-512 of those kernels (F, CD, BW, DQ, VL), where they ran
+/// lapmesh's factorisations faster than Haswell's (doc/benchmarks.md); "Haswell" on one with
+/// AVX2 and FMA; std::nullopt otherwise. OpenBLAS reads the variable when it is loaded, so only a
+/// new process can use it (the command line restarts itself with it).
 inline std::optional<std::string> openblas_coretype_that_fits()
 {
   const std::optional<internal::Slow_openblas> slow = internal::slow_openblas();
   if(!slow || !slow->dynamic || !slow->avx2_fma) return std::nullopt;
-  return std::string("Haswell");
+  return std::string(slow->skylakex ? "SkylakeX" : "Haswell");
 }
 
 } // namespace lapmesh
