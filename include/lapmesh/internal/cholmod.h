@@ -182,7 +182,7 @@ public:
   /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
   /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
   /// supernodes are larger for the same flops: the bar is lower for them.
-  double lapmesh_max_flops_per_entry() const { return m_supernodes == Supernodes::compact ? 600 : 300; }
+  double lapmesh_max_flops_per_entry() const { return m_analysed_supernodes == Supernodes::compact ? 600 : 300; }
   /// Takes effect at the next factorize().
   void set_numeric(Numeric numeric) { m_numeric = numeric; }
   /// Whether the last factorize() was lapmesh's (Numeric::fastest chose it).
@@ -360,12 +360,13 @@ private:
       Serial_openmp_scope serial;
       Base::analyzePattern(A);
     }
+    m_analysed_supernodes = m_supernodes;
     release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
   }
 
   Ordering m_ordering = Ordering::amd;
   Numeric m_numeric = Numeric::cholmod;
-  Supernodes m_supernodes = Supernodes::merged;
+  Supernodes m_supernodes = Supernodes::merged, m_analysed_supernodes = Supernodes::merged;
   bool m_factorised_by_lapmesh = false;
   double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
 

@@ -276,8 +276,9 @@ public:
       last_cholmod_message().clear();
       m_chol.factorize(A);
       if(m_chol.info() == Eigen::Success) return true;
-      if(m_chol.factorised_by_lapmesh())
-        m_failure = "the supernodal LDL^T on CHOLMOD's analysis found a pivot <= 0: not positive definite";
+      // lapmesh's factorisation fails on a pivot that is not positive, with no message of CHOLMOD's.
+      if(m_chol.factorised_by_lapmesh() && last_cholmod_message().empty())
+        m_failure = "the supernodal LDL^T on CHOLMOD's analysis found a pivot that is not positive: not positive definite";
       else
         m_failure = "CHOLMOD " + (last_cholmod_message().empty() ? std::string("reported a numerical issue")
                                                                    : last_cholmod_message());
