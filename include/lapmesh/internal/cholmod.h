@@ -38,7 +38,6 @@
 
 #include <dlfcn.h>
 
-#include <cmath>
 #include <cstddef>
 #include <cstdlib>
 #include <string>
@@ -343,10 +342,11 @@ private:
     // solves that follow.
     Supernodal_ldlt ldlt(*L);
     const Eigen::Index n = Eigen::Index(L->n);
-    const bool factorised = in_given_order() ? ldlt.factorize_in(static_cast<double*>(L->x), A, Eigen::VectorXd::Zero(n), 0.0)
-                                             : ldlt.factorize_in(static_cast<double*>(L->x), ldlt.permuted_lower(A),
-                                                                 Eigen::VectorXd::Zero(n), 0.0);
-    if(!factorised || !ldlt.scale_to_cholesky()) {
+    // A matrix in the given order is already in the factor's order: no permuted copy.
+    const MatrixType permuted = in_given_order() ? MatrixType() : ldlt.permuted_lower(A);
+    const MatrixType& lower = in_given_order() ? A : permuted;
+    if(!ldlt.factorize_in(static_cast<double*>(L->x), lower, Eigen::VectorXd::Zero(n), 0.0) ||
+       !ldlt.scale_to_cholesky()) {
       L->minor = 0;  // which pivot failed matters to no caller
       return;
     }
