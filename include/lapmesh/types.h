@@ -438,7 +438,8 @@ struct Spectral_options
                                    ///< or k > 1000
   double ncv_factor = 0;           ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
                                    ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos);
-                                   ///< 0: the method's own, 2 (Spectra) or 1.75 (block Lanczos)
+                                   ///< 0: the method's own, 2 (Spectra) or, for block Lanczos,
+                                   ///< 2.5 up to 48 pairs and 1.75 beyond
   std::function<void(const Spectral_progress&)> progress;  ///< optional
 };
 

@@ -557,9 +557,10 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.block_size = opt.block_size > 0 ? opt.block_size : default_block_size(m);
   bo.tolerance = opt.tolerance;
   bo.max_restarts = opt.max_restarts;
-  // A smaller basis than Spectra's: for large k the re-orthogonalisation it saves outweighs the
-  // extra restarts, for small k it saves memory at about the same speed (doc/spectral.md).
-  const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : 1.75;
+  // For large k a smaller basis than Spectra's: the re-orthogonalisation it saves outweighs the
+  // extra restarts. For a few dozen pairs a larger one: its fewer restarts save more solves than
+  // the longer re-orthogonalisation costs (doc/spectral.md).
+  const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : m <= 48 ? 2.5 : 1.75;
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
   if(const Null_space_deflation* null_space = deflation_of(factor))
