@@ -503,6 +503,12 @@ inline void scaled_solve_in_solve_order(const Cholmod_supernodal_llt& factor, co
 /// (doc/spectral.md).
 inline Eigen::Index default_block_size(Eigen::Index m) { return m < 250 ? 4 : 8; }
 
+/// The basis of a block Lanczos run for m pairs, per pair, unless the options set it. For a few
+/// dozen pairs a larger basis than Spectra's: its fewer restarts save more solves than the longer
+/// re-orthogonalisation costs; for more pairs a smaller one, for the opposite reason
+/// (doc/spectral.md).
+inline double default_basis_factor(Eigen::Index m) { return m <= 48 ? 2.5 : 1.75; }
+
 /// The most copies of one value (equal to 1e-8 relative) among v[from..].
 inline Eigen::Index largest_multiplicity(const Eigen::VectorXd& v, Eigen::Index from)
 {
@@ -557,10 +563,7 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   bo.block_size = opt.block_size > 0 ? opt.block_size : default_block_size(m);
   bo.tolerance = opt.tolerance;
   bo.max_restarts = opt.max_restarts;
-  // For large k a smaller basis than Spectra's: the re-orthogonalisation it saves outweighs the
-  // extra restarts. For a few dozen pairs a larger one: its fewer restarts save more solves than
-  // the longer re-orthogonalisation costs (doc/spectral.md).
-  const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : m <= 48 ? 2.5 : 1.75;
+  const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : default_basis_factor(m);
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
   if(const Null_space_deflation* null_space = deflation_of(factor))
