@@ -430,7 +430,7 @@ struct Spectral_options
   bool check_completeness = true;  ///< Sylvester inertia count (one more numeric factorisation)
   Sparse_cholesky cholesky = default_sparse_cholesky;   ///< the factorisation of the shift-invert operator
   Krylov_method method = Krylov_method::block_lanczos;  ///< the eigensolver
-  int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 60 pairs, else 8
+  int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 250 pairs, else 8
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
   int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
                                    ///< by the solver past wider clusters (Spectra inside);
