@@ -163,8 +163,23 @@ public:
   /// space removed from a vector of the Krylov runs' symmetric form, x = M^(1/2) u.
   void remove_from_symmetric_form(Eigen::Ref<Eigen::VectorXd> x, const Eigen::VectorXd& sqrt_mass) const
   {
+    remove_from_symmetric_block(Eigen::Map<Eigen::MatrixXd>(x.data(), x.size(), 1), sqrt_mass);
+  }
+  /// remove_from_symmetric_form() for every column of X.
+  void remove_from_symmetric_block(Eigen::Ref<Eigen::MatrixXd> X, const Eigen::VectorXd& sqrt_mass) const
+  {
     const auto weight = [&](Eigen::Index v) { return sqrt_mass[v]; };
-    subtract_component_sums(Eigen::Map<Eigen::MatrixXd>(x.data(), x.size(), 1), weight, weight);
+    subtract_component_sums(X, weight, weight);
+  }
+  /// The same null space for vectors whose row i is row order[i] of the matrix's (a Krylov run in
+  /// a factor's row order); its vertex weights are then given in that order too.
+  Null_space_deflation in_order(const int* order) const
+  {
+    Null_space_deflation d;
+    d.m_mass = m_mass;
+    d.m_component.resize(m_component.size());
+    for(Eigen::Index i = 0; i < m_component.size(); ++i) d.m_component[i] = m_component[order[i]];
+    return d;
   }
   /// The null space's M-orthonormal basis: column C is 1_C / sqrt(m_C).
   Eigen::MatrixXd null_vectors() const
@@ -195,10 +210,13 @@ private:
   template <typename In, typename Out>
   void subtract_component_sums(Eigen::Ref<Eigen::MatrixXd> X, const In& in, const Out& out) const
   {
+    // Column by column: X is column-major.
     Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(count(), X.cols());
-    for(Eigen::Index v = 0; v < X.rows(); ++v) sums.row(m_component[v]) += in(v) * X.row(v);
+    for(Eigen::Index j = 0; j < X.cols(); ++j)
+      for(Eigen::Index v = 0; v < X.rows(); ++v) sums(m_component[v], j) += in(v) * X(v, j);
     sums.array().colwise() /= m_mass.array();
-    for(Eigen::Index v = 0; v < X.rows(); ++v) X.row(v) -= out(v) * sums.row(m_component[v]);
+    for(Eigen::Index j = 0; j < X.cols(); ++j)
+      for(Eigen::Index v = 0; v < X.rows(); ++v) X(v, j) -= out(v) * sums(m_component[v], j);
   }
 
   Eigen::VectorXi m_component;  // per vertex
@@ -225,6 +243,7 @@ public:
     return u;
   }
   const Null_space_deflation& deflation() const { return m_deflation; }
+  const Factor& factor() const { return m_factor; }
 
 private:
   const Factor& m_factor;
@@ -242,6 +261,18 @@ template <typename Factor>
 const Null_space_deflation* deflation_of(const Deflated_solve<Factor>& solve)
 {
   return &solve.deflation();
+}
+
+/// The factor behind a Krylov run's operator.
+template <typename Factor>
+const Factor& factor_of(const Factor& factor)
+{
+  return factor;
+}
+template <typename Factor>
+const Factor& factor_of(const Deflated_solve<Factor>& solve)
+{
+  return solve.factor();
 }
 
 /// The fill-reducing permutation P of a Cholesky factor (L L^T = P K P^T), as an Eigen
@@ -566,10 +597,6 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : default_basis_factor(m);
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
-  if(const Null_space_deflation* null_space = deflation_of(factor))
-    bo.remove_null_space = [null_space, &sqrt_mass](Eigen::Ref<Eigen::VectorXd> x) {
-      null_space->remove_from_symmetric_form(x, sqrt_mass);
-    };
   // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma.
   const auto ascending_lambda = [sigma](const Eigen::VectorXd& theta) {
     Eigen::VectorXd lambda = (1.0 / theta.array() + sigma).matrix();
@@ -581,18 +608,34 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
       return restart >= watch->patience && crowded_far_from_shift(ascending_lambda(theta), sigma, watch->crowding);
     };
   // The run works in the order the factor solves in; its vectors are put back in the matrix's
-  // order once, at the end.
-  const int* order = solve_order(factor);
+  // order once, at the end. On a mesh of several components, the null space is removed from the
+  // factor's solutions in that order too. The operator maps the null space onto itself, so
+  // removing it from the solution removes what the block carried of it as well.
+  const auto& solver = factor_of(factor);
+  const int* order = solve_order(solver);
+  const Null_space_deflation* null_space = deflation_of(factor);
   Eigen::VectorXd ordered_sqrt_mass;
   if(order) {
     ordered_sqrt_mass.resize(n);
     for(Eigen::Index i = 0; i < n; ++i) ordered_sqrt_mass[i] = sqrt_mass[order[i]];
   }
   const Eigen::VectorXd& run_sqrt_mass = order ? ordered_sqrt_mass : sqrt_mass;
+  const Null_space_deflation ordered_null_space =
+    order && null_space ? null_space->in_order(order) : Null_space_deflation();
+  const Null_space_deflation* run_null_space = order && null_space ? &ordered_null_space : null_space;
+  if(run_null_space)
+    bo.remove_null_space = [run_null_space, &run_sqrt_mass](Eigen::Ref<Eigen::VectorXd> x) {
+      run_null_space->remove_from_symmetric_form(x, run_sqrt_mass);
+    };
   bo.row_order = order;
   Eigen::MatrixXd rhs;
   auto apply = [&](const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y) {
-    scaled_solve_in_solve_order(factor, run_sqrt_mass, X, Y, rhs);
+    if(order && null_space) {
+      scaled_solve_in_solve_order(solver, run_sqrt_mass, X, Y, rhs);
+      ordered_null_space.remove_from_symmetric_block(Y, run_sqrt_mass);
+    } else {
+      scaled_solve_in_solve_order(factor, run_sqrt_mass, X, Y, rhs);
+    }
   };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
   if(!r.converged) {
