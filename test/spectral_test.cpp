@@ -528,8 +528,10 @@ TEST(Spectral, DeflatedRunsInTheFactorsOrderEqualThoseInTheMatrixs)
   };
   add(lapmesh::torus(40, 24, 1.0, 0.3), 4.0);
   add(lapmesh::plane_patch(30, 0.1), -4.0);
-  // The components' vertices interleaved, as the factor's order does not keep them: vertex v
-  // becomes (7919 v) mod n (7919 is prime, and n not a multiple of it).
+  // The components' vertices interleaved: numbered one component after another, they keep
+  // their places in the factor's order (AMD's postorder), and a null space removed with the
+  // matrix's component labels there would pass unnoticed. Vertex v becomes (7919 v) mod n
+  // (7919 is prime, and n not a multiple of it).
   const int n = int(soup.points.size());
   ASSERT_NE(n % 7919, 0);
   lapmesh::Triangle_soup shuffled = soup;
