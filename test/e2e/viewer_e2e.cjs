@@ -385,6 +385,10 @@ async function main() {
     assert.deepEqual(smoothed, Array.from((await apiFrame(`/api/meshes/${meshId}/geometry`)).positions));
     assert.equal(await page.inputValue('#quantity'), 'displacement');
     await shot('smooth_implicit');
+    // The other schemes start from the input: the implicit steps above leave slivers (doubled area
+    // about 6e-8 of the longest edge squared) that the conformal step then flattens to the
+    // degenerate-face tolerance, where whether it refuses depends on round-off.
+    await press('reset');
     for (const [scheme, lambda, unit, fixed] of [['explicit', '0.5', 'bound', true], ['conformal', '1', 'edge2', false]]) {
       await page.selectOption('#sm-scheme', scheme);
       await page.fill('#sm-lambda', lambda);
