@@ -520,13 +520,20 @@ TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
     lapmesh_difference = std::max(lapmesh_difference, std::abs(x_lapmesh[k] - x_given[k]));
   EXPECT_LE(lapmesh_difference, 1e-12 * largest);
 
+  // The in-place solve: lapmesh's supernodal kernels for 2 to 8 columns (3 is a smoothing step's
+  // coordinates), CHOLMOD's solves otherwise; each column equals Eigen's LDL^T solution.
   const Eigen::SparseMatrix<double> full = in_its_order.matrix().selfadjointView<Eigen::Lower>();
-  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(nf, 3);
-  const Eigen::MatrixXd reference = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(B);
-  for(const Cholmod_supernodal_llt* factor : {&given, &given_by_lapmesh}) {
-    Eigen::MatrixXd X = B;
-    ASSERT_TRUE(factor->solve_in_place(X.data(), nf, 3));
-    EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff());
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> reference_solver(full);
+  for(const Index columns : {1, 3, 5, 9}) {
+    const Eigen::MatrixXd B = Eigen::MatrixXd::Random(nf, columns);
+    const Eigen::MatrixXd reference = reference_solver.solve(B);
+    for(const Cholmod_supernodal_llt* factor : {&given, &given_by_lapmesh}) {
+      Eigen::MatrixXd X = B, by_cholmod = B;
+      ASSERT_TRUE(factor->solve_in_place(X.data(), nf, columns));
+      ASSERT_TRUE(factor->cholmod_solve_in_place(by_cholmod.data(), nf, columns));
+      EXPECT_LE((X - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff()) << columns;
+      EXPECT_LE((by_cholmod - reference).cwiseAbs().maxCoeff(), 1e-10 * reference.cwiseAbs().maxCoeff()) << columns;
+    }
   }
 }
 

@@ -291,8 +291,24 @@ public:
 
   /// Solves L L^T X = B in place for a factor in_given_order(): `data` holds the `cols`
   /// right-hand sides column after column. CHOLMOD's solve would allocate the solution and a
-  /// permuted copy of the block.
+  /// permuted copy of the block. A few columns (the three coordinates of a smoothing step) go
+  /// through lapmesh's supernodal kernels, in a block of rows made for the solve and freed after
+  /// it, so that it is not held beside the next step's assembly.
   bool solve_in_place(double* data, Eigen::Index rows, Eigen::Index cols) const
+  {
+    if(!supernodal_kernels_fit(std::size_t(cols))) return cholmod_solve_in_place(data, rows, cols);
+    const std::size_t width = supernodal_row_width(std::size_t(cols)), n = std::size_t(rows);
+    std::vector<double> by_rows(n * width, 0.0);
+    for(std::size_t j = 0; j < std::size_t(cols); ++j)
+      for(std::size_t i = 0; i < n; ++i) by_rows[i * width + j] = data[j * n + i];
+    supernodal_llt_solve_rows(factor_view(), by_rows.data(), width);
+    for(std::size_t j = 0; j < std::size_t(cols); ++j)
+      for(std::size_t i = 0; i < n; ++i) data[j * n + i] = by_rows[i * width + j];
+    return true;
+  }
+
+  /// solve_in_place() by CHOLMOD's supernodal solves, for any number of columns.
+  bool cholmod_solve_in_place(double* data, Eigen::Index rows, Eigen::Index cols) const
   {
     m_work.resize(Eigen::Index(m_cholmodFactor->maxesize), cols);
     cholmod_dense rhs = dense_view(data, rows, cols), work = dense_view(m_work.data(), m_work.rows(), cols);
@@ -391,7 +407,7 @@ private:
     if(by_rows) {
       supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
     } else {
-      solve_in_place(m_rhs.data(), n, nrhs);
+      cholmod_solve_in_place(m_rhs.data(), n, nrhs);
     }
     Y.resize(n, nrhs);
     for(Eigen::Index i = 0; i < n; ++i) {
