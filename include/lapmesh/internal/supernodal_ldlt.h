@@ -201,6 +201,17 @@ private:
     m_head[target] = int(d);
   }
 
+  /// A rows x cols block (column-major) in `storage`, which is enlarged when too small.
+  static Block work_block(std::vector<double>& storage, int rows, int cols)
+  {
+    const std::size_t size = std::size_t(rows) * std::size_t(cols);
+    if(storage.size() < size) {
+      std::vector<double>().swap(storage);  // freed first: its values need not be kept
+      storage.resize(size);
+    }
+    return Block(storage.data(), rows, cols, Eigen::OuterStride<>(rows));
+  }
+
   /// X_s -= L_d(rows >= k1) D_d L_d(rows in [k1, k2))^T, scattered into supernode s.
   void apply_update(std::size_t d, std::size_t s, double* X, int nrow)
   {
@@ -213,14 +224,14 @@ private:
     while(stop < drow && drows[stop] < k2) ++stop;
     const int inside = stop - start, below = drow - start;
     const Block Ld(m_values + m_px[d], drow, dcol, Eigen::OuterStride<>(drow));
-    m_scaled.resize(dcol, inside);  // D_d L_d(rows in [k1, k2))^T
+    Block scaled = work_block(m_scaled, dcol, inside);  // D_d L_d(rows in [k1, k2))^T
     for(int j = 0; j < inside; ++j)
-      for(int c = 0; c < dcol; ++c) m_scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j, c);
-    m_update.resize(below, inside);
-    tall_gemm(false, 1.0, Ld.middleRows(start, below), m_scaled, 0.0, m_update);
+      for(int c = 0; c < dcol; ++c) scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j, c);
+    Block update = work_block(m_update, below, inside);
+    tall_gemm(false, 1.0, Ld.middleRows(start, below), scaled, 0.0, update);
     for(int j = 0; j < inside; ++j) {
       double* column = X + std::size_t(drows[start + j] - k1) * std::size_t(nrow);
-      for(int i = j; i < below; ++i) column[m_position[std::size_t(drows[start + i])]] -= m_update(i, j);
+      for(int i = j; i < below; ++i) column[m_position[std::size_t(drows[start + i])]] -= update(i, j);
     }
     m_progress[d] = stop;
   }
@@ -249,10 +260,10 @@ private:
       if(p1 == ncol) break;
       // Columns p1.. ncol-1: X(i, c) -= sum over the panel of L(i, j) d_j L(c, j), i >= p1.
       const int w = p1 - p0, right = ncol - p1, below = nrow - p1;
-      m_scaled.resize(w, right);
+      Block scaled = work_block(m_scaled, w, right);
       for(int c = 0; c < right; ++c)
-        for(int j = 0; j < w; ++j) m_scaled(j, c) = m_pivots[k1 + p0 + j] * X(p1 + c, p0 + j);
-      tall_gemm(false, -1.0, X.block(p1, p0, below, w), m_scaled, 1.0, X.block(p1, p1, below, right));
+        for(int j = 0; j < w; ++j) scaled(j, c) = m_pivots[k1 + p0 + j] * X(p1 + c, p0 + j);
+      tall_gemm(false, -1.0, X.block(p1, p0, below, w), scaled, 1.0, X.block(p1, p1, below, right));
     }
     for(int c = 0; c < ncol; ++c) X.col(c).head(c).setZero();  // the unused upper triangle
     return true;
@@ -268,7 +279,10 @@ private:
   Permutation m_perm;
   // Work space of factorize().
   std::vector<int> m_position, m_head, m_next, m_progress;
-  Eigen::MatrixXd m_scaled, m_update;
+  // Work blocks of the updates: they only grow, so that the blocks of varying sizes, one per
+  // update, are not allocated and freed thousands of times, which fragments the heap and leaves
+  // a large factorisation's process tens of MiB above its live memory.
+  std::vector<double> m_scaled, m_update;
   mutable Eigen::MatrixXd m_rhs, m_below;  // solve()'s
 };
 
