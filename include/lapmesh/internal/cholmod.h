@@ -257,6 +257,9 @@ public:
                               cholmod().fl <= lapmesh_max_flops_per_entry() * cholmod().lnz;
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
+      // Its work space (a copy of the structure, the update blocks) lies freed in the heap:
+      // handed back, it is not resident beside the next assembly of a smoothing run.
+      release_free_heap(std::size_t(16) << 20);
       return;
     }
     Serial_openmp_scope serial;
