@@ -541,7 +541,9 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
 {
   // The graph Laplacian of a 3D grid: AMD's factor needs many flops per entry there, and
   // METIS's factor is smaller. A path's factor needs few: AMD stays however large it is taken to
-  // be. Whatever the ordering, the solve equals Eigen's LDL^T solution of the same system.
+  // be. Whatever the ordering, the solve equals Eigen's LDL^T solution of the same system. The
+  // supernodes: merged (CHOLMOD's default) where CHOLMOD factorises, compact where lapmesh does,
+  // so that the path's factor holds fewer values than CHOLMOD's default analysis would give it.
   using lapmesh::internal::Constrained_spd_system;
   using lapmesh::internal::Index;
   using lapmesh::internal::Spd_direct_solver;
@@ -572,6 +574,8 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   {
     std::string ordering;
     double factor_entries = 0;
+    std::size_t factor_values = 0, default_factor_values = 0;  // the latter: merged supernodes
+    double flops_per_entry = 0;
     bool factorised_by_lapmesh = false;
     double error = std::numeric_limits<double>::infinity();  // until a solve is compared
   };
@@ -589,6 +593,11 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
     Outcome outcome;
     outcome.ordering = solver.ordering();
     outcome.factor_entries = solver.factor_entries();
+    outcome.factor_values = solver.factor_values();
+    lapmesh::internal::Cholmod_supernodal_llt merged(lapmesh::internal::Cholmod_supernodal_llt::Ordering::given);
+    merged.analyzePattern(ordered.matrix());
+    outcome.default_factor_values = merged.factor()->xsize;
+    outcome.flops_per_entry = merged.cholmod().fl / merged.cholmod().lnz;
     if(!solver.factorize(ordered.matrix())) return outcome;
     outcome.factorised_by_lapmesh = solver.factorised_by_lapmesh();
     const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, 3);
@@ -608,11 +617,20 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   EXPECT_EQ(large.ordering, "metis");
   EXPECT_LT(large.factor_entries, 0.85 * by_default.factor_entries);
   EXPECT_EQ(path_large.ordering, "amd");
-  // The numeric factorisation: CHOLMOD's for the grid's large supernodes, lapmesh's for the path's.
+  // The numeric factorisation: CHOLMOD's for the grid's large supernodes (AMD's), lapmesh's for
+  // the path's; each by the flops per factor entry, and on compact supernodes where lapmesh's.
+  EXPECT_GT(by_default.flops_per_entry, 600);
   EXPECT_FALSE(by_default.factorised_by_lapmesh);
-  EXPECT_FALSE(large.factorised_by_lapmesh);
   EXPECT_TRUE(path_large.factorised_by_lapmesh);
-  for(const Outcome* o : {&by_default, &large, &path_large}) EXPECT_LE(o->error, 1e-12) << o->ordering;
+  EXPECT_LT(double(path_large.factor_values), 0.9 * double(path_large.default_factor_values));
+  for(const Outcome* o : {&by_default, &large, &path_large}) {
+    EXPECT_EQ(o->factorised_by_lapmesh, o->flops_per_entry <= 600) << o->ordering;
+    if(o->factorised_by_lapmesh)
+      EXPECT_LT(o->factor_values, o->default_factor_values) << o->ordering;
+    else
+      EXPECT_EQ(o->factor_values, o->default_factor_values) << o->ordering;
+    EXPECT_LE(o->error, 1e-12) << o->ordering;
+  }
 }
 #endif
 

@@ -178,10 +178,6 @@ public:
               ///< CHOLMOD calls the BLAS for every supernode, which costs more than the work on
               ///< small ones. CHOLMOD's otherwise.
   };
-  /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
-  /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
-  /// supernodes are larger for the same flops: the bar is lower for them.
-  double lapmesh_max_flops_per_entry() const { return m_analysed_supernodes == Supernodes::compact ? 600 : 300; }
   /// Takes effect at the next factorize().
   void set_numeric(Numeric numeric) { m_numeric = numeric; }
   /// Whether the last factorize() was lapmesh's (Numeric::fastest chose it).
@@ -193,6 +189,11 @@ public:
     compact  ///< fewer explicit zeros: a smaller factor, which every solve reads faster; for a
              ///< factorisation that serves many solves (shift-invert Krylov methods)
   };
+  /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
+  /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
+  /// supernodes are larger for the same flops: the bar is lower for them.
+  double lapmesh_max_flops_per_entry() const { return lapmesh_max_flops_per_entry(m_analysed_supernodes); }
+  static double lapmesh_max_flops_per_entry(Supernodes supernodes) { return supernodes == Supernodes::compact ? 600 : 300; }
 
   explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd)
   {

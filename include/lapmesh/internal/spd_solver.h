@@ -210,6 +210,15 @@ public:
     return 0;
   }
 
+  /// The values that the factor of the last analysis holds, explicit zeros of its supernodes
+  /// included (0 without CHOLMOD).
+  std::size_t factor_values() const
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod && !m_external.factor && m_chol.factor()) return std::size_t(m_chol.factor()->xsize);
+#endif
+    return 0;
+  }
   /// The symbolic analysis of A. With CHOLMOD it returns the fill-reducing order it chose: the
   /// caller rebuilds the matrix in that order (Constrained_spd_system's `order`) and hands it to
   /// analyze_in_order(), after which CHOLMOD factorises it without permuted copies and solves in
@@ -245,6 +254,15 @@ public:
   void analyze_in_order(const SpMat& A)
   {
 #ifdef LAPMESH_HAS_CHOLMOD
+    // Compact supernodes where lapmesh's numeric factorisation will make the factor (the flops
+    // per entry of analyze()'s ordering are those of this analysis): the factor, most of a
+    // step's memory, holds fewer explicit zeros, and the steps took no longer. CHOLMOD's
+    // BLAS-based factorisation keeps the merged ones, on which it is faster (doc/smoothing.md).
+    using Supernodes = Cholmod_supernodal_llt::Supernodes;
+    const cholmod_common& analysed = m_chol.cholmod();
+    const bool by_lapmesh =
+      analysed.fl <= Cholmod_supernodal_llt::lapmesh_max_flops_per_entry(Supernodes::compact) * analysed.lnz;
+    m_chol.set_supernodes(by_lapmesh ? Supernodes::compact : Supernodes::merged);
     m_chol.set_ordering(Cholmod_supernodal_llt::Ordering::given);
     m_chol.analyzePattern(A);
     if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
