@@ -187,7 +187,9 @@ public:
   enum class Supernodes {
     merged,  ///< CHOLMOD's default: the largest supernodes, the fastest factorisation
     compact  ///< fewer explicit zeros: a smaller factor, which every solve reads faster; for a
-             ///< factorisation that serves many solves (shift-invert Krylov methods)
+             ///< factorisation that serves many solves (shift-invert Krylov methods), and for
+             ///< lapmesh's numeric factorisation of a smoothing step, whose factor is most of
+             ///< the step's memory
   };
   /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
   /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
