@@ -173,7 +173,8 @@ public:
   enum class Numeric {
     cholmod,  ///< CHOLMOD's supernodal LL^T
     fastest   ///< where the analysis predicts small supernodes (at most
-              ///< lapmesh_max_flops_per_entry() flops per factor entry), lapmesh's supernodal
+              ///< lapmesh_max_flops_per_entry() flops per factor entry for the analysed
+              ///< supernodes, factorises_by_lapmesh_on()), lapmesh's supernodal
               ///< LDL^T (internal/supernodal_ldlt.h) turned into L L^T in CHOLMOD's factor:
               ///< CHOLMOD calls the BLAS for every supernode, which costs more than the work on
               ///< small ones. CHOLMOD's otherwise.
@@ -194,8 +195,13 @@ public:
   /// Above this many flops per factor entry (large supernodes, as on a regular grid or a mesh of
   /// a million vertices) CHOLMOD's BLAS-based numeric factorisation is the faster one. Merged
   /// supernodes are larger for the same flops: the bar is lower for them.
-  double lapmesh_max_flops_per_entry() const { return lapmesh_max_flops_per_entry(m_analysed_supernodes); }
   static double lapmesh_max_flops_per_entry(Supernodes supernodes) { return supernodes == Supernodes::compact ? 600 : 300; }
+  /// Whether factorize() makes the factor by lapmesh's numeric factorisation on an analysis with
+  /// `supernodes`, by the flops per entry of the last analysis (the supernodes do not change them).
+  bool factorises_by_lapmesh_on(Supernodes supernodes)
+  {
+    return m_numeric == Numeric::fastest && cholmod().fl <= lapmesh_max_flops_per_entry(supernodes) * cholmod().lnz;
+  }
 
   explicit Cholmod_supernodal_llt(Ordering ordering = Ordering::amd)
   {
@@ -256,8 +262,7 @@ public:
   void factorize(const MatrixType& A)
   {
     Subnormals_flushed_scope flushed;
-    m_factorised_by_lapmesh = m_numeric == Numeric::fastest && m_analysisIsOk && m_cholmodFactor->is_super &&
-                              cholmod().fl <= lapmesh_max_flops_per_entry() * cholmod().lnz;
+    m_factorised_by_lapmesh = m_analysisIsOk && m_cholmodFactor->is_super && factorises_by_lapmesh_on(m_analysed_supernodes);
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
       // Its work space (a copy of the structure, the update blocks) lies freed in the heap:

@@ -219,6 +219,7 @@ public:
 #endif
     return 0;
   }
+
   /// The symbolic analysis of A. With CHOLMOD it returns the fill-reducing order it chose: the
   /// caller rebuilds the matrix in that order (Constrained_spd_system's `order`) and hands it to
   /// analyze_in_order(), after which CHOLMOD factorises it without permuted copies and solves in
@@ -259,10 +260,8 @@ public:
     // step's memory, holds fewer explicit zeros, and the steps took no longer. CHOLMOD's
     // BLAS-based factorisation keeps the merged ones, on which it is faster (doc/smoothing.md).
     using Supernodes = Cholmod_supernodal_llt::Supernodes;
-    const cholmod_common& analysed = m_chol.cholmod();
-    const bool by_lapmesh =
-      analysed.fl <= Cholmod_supernodal_llt::lapmesh_max_flops_per_entry(Supernodes::compact) * analysed.lnz;
-    m_chol.set_supernodes(by_lapmesh ? Supernodes::compact : Supernodes::merged);
+    m_chol.set_supernodes(m_chol.factorises_by_lapmesh_on(Supernodes::compact) ? Supernodes::compact
+                                                                                : Supernodes::merged);
     m_chol.set_ordering(Cholmod_supernodal_llt::Ordering::given);
     m_chol.analyzePattern(A);
     if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
