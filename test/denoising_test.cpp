@@ -631,6 +631,34 @@ TEST(Denoising, AFailedRunRecordsWhyAndTheIterationThatCollapsedAFace)
   }
 }
 
+// A run that ends with the step that collapses a face fails as a longer run does, naming the
+// same iteration and face; one step fewer succeeds and leaves a mesh whose operator assembles.
+// The cow's flow at this lambda takes a face below the zero-area tolerance in one step (the
+// thin torus's nearly collapsed faces make the factorisation fail first).
+TEST(Denoising, ARunEndingWithTheCollapsingStepFailsAsALongerRunDoes)
+{
+  Mesh cow;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh("cow.off"), cow);
+  Mesh smoothed;
+  const auto error_of_run = [&](int iterations) {
+    smoothed = cow;
+    try {
+      lapmesh::smooth_laplacian_implicit(smoothed, 1e-5, CGAL::parameters::number_of_iterations(iterations));
+    } catch(const lapmesh::Mesh_error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const std::string longer = error_of_run(40);
+  ASSERT_EQ(longer.rfind("iteration ", 0), 0u) << longer;
+  EXPECT_NE(longer.find(" has zero area (the flow collapsed it"), std::string::npos) << longer;
+  const int failed_at = std::stoi(longer.substr(10));
+  ASSERT_GE(failed_at, 2);
+  EXPECT_EQ(error_of_run(failed_at), longer);
+  EXPECT_EQ(error_of_run(failed_at - 1), "");
+  EXPECT_NO_THROW(lapmesh::laplacian_pencil(smoothed));
+}
+
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
 // sum of positive semidefinite element matrices. A one-step flow on a mesh full of obtuse
 // triangles factorises at any lambda.

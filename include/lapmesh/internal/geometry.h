@@ -220,6 +220,31 @@ inline void throw_face_defect(Index f, Face_defect d)
   throw Mesh_error(out_of_range_message(f, d), Mesh_error::Element::face, f);
 }
 
+/// Throws the Mesh_error of face f, which face_in_range() refused.
+inline void throw_refused_face(const Mesh_topology& t, const Positions& P, Index f)
+{
+  const Index* tri = t.triangles.data();
+  const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
+  const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
+  throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
+}
+
+/// Throws the Mesh_error of the first face that compute_corner_geometry() would refuse (zero
+/// area, or out of the representable range), without computing anything else.
+inline void require_faces_in_range(const Mesh_topology& t, const Positions& P, bool parallel)
+{
+  const Index* tri = t.triangles.data();
+  First_index<Index> first_refused;
+  for_each_index(t.num_faces, parallel, [&](Index f) {
+    const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
+    const Eigen::Vector3d e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0;
+    const Eigen::Vector3d cross = e2.cross(-e1);
+    const double longest = std::max(e0.squaredNorm(), std::max(e1.squaredNorm(), e2.squaredNorm()));
+    if(!face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()))) first_refused.record(f);
+  });
+  if(!first_refused.empty()) throw_refused_face(t, P, first_refused.get());
+}
+
 /// Fills `g` from the positions. Throws Mesh_error naming the first degenerate face.
 inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
                                     const Corner_request& request, bool parallel,
@@ -280,12 +305,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
       }
       if(request.want_face_normals) normal_sums.add_face(f, cross.data());
     });
-    if(!first_degenerate.empty()) {
-      const Index f = first_degenerate.get();
-      const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
-      const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
-      throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
-    }
+    if(!first_degenerate.empty()) throw_refused_face(t, P, first_degenerate.get());
     g.vertex_area = area_sums.finish(t, parallel);
     if(request.want_angles) g.angle_sum = angle_sums.finish(t, parallel);
     if(request.want_face_normals) g.face_normal_sum = normal_sums.finish(t, parallel);

@@ -152,6 +152,7 @@ public:
       ++m_report.iterations;
       if(m_s.progress) m_s.progress(it + 1, m_s.iterations);
     }
+    check_last_faces();
     return m_report;
   }
 
@@ -311,6 +312,15 @@ private:
     return Index(m_pattern_inner.size()) != S.nonZeros() ||
            !std::equal(m_pattern_outer.begin(), m_pattern_outer.end(), S.outerIndexPtr()) ||
            !std::equal(m_pattern_inner.begin(), m_pattern_inner.end(), S.innerIndexPtr());
+  }
+
+  /// A flow whose operator follows the positions stops at the first step that collapses a face,
+  /// whether or not another step follows: the last step's faces get the face check of the next
+  /// operator's assembly. The intrinsic Delaunay operator takes such faces.
+  void check_last_faces() const
+  {
+    if(!m_rebuild || m_s.laplacian == Laplacian::intrinsic_delaunay) return;
+    rebuild_operator_after(m_s.iterations, [&] { require_faces_in_range(m_t, m_P, m_s.parallel); });
   }
 
   /// Volume or area restoration; the explicit scheme's divergence check.
