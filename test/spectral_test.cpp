@@ -289,6 +289,14 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
       EXPECT_LT((shifted.selfadjointView<Eigen::Lower>() * x - rhs).norm(), 1e-8 * rhs.norm() * (1 + x.norm())) << tau;
       if(tau < 0) { EXPECT_EQ(ldlt.negative_pivots(), 0); }
       if(tau > 100 * lambda_scale) { EXPECT_GT(ldlt.negative_pivots(), 5); }
+      // Reading the structure in the factor instead of a copy of it changes nothing, and a copy
+      // outlives a move of its owner.
+      lapmesh::internal::Supernodal_ldlt view(*llt.factor(), lapmesh::internal::Supernodal_ldlt::Structure_use::view);
+      ASSERT_TRUE(view.factorize(lower, pencil.mass, tau)) << tau;
+      EXPECT_EQ(view.pivots(), ldlt.pivots()) << tau;
+      lapmesh::internal::Supernodal_ldlt moved(std::move(ldlt));
+      EXPECT_EQ(moved.solve(rhs), view.solve(rhs)) << tau;
+      ldlt = std::move(moved);
     }
   }
   // The structure of an analysis alone serves as well.

@@ -365,14 +365,13 @@ private:
     m_info = Eigen::NumericalIssue;
     if(L->xtype == CHOLMOD_PATTERN && !cholmod_change_factor(CHOLMOD_REAL, true, true, true, true, L, &cholmod()))
       return;
-    // Made for each factorisation: its copy of the structure would add to the memory of the
-    // solves that follow.
-    Supernodal_ldlt ldlt(*L);
-    const Eigen::Index n = Eigen::Index(L->n);
+    // Made for each factorisation, on a view of the factor's structure: a copy, or its work
+    // space kept, would add to the peak of a smoothing step and to the memory of the solves.
+    Supernodal_ldlt ldlt(*L, Supernodal_ldlt::Structure_use::view);
     // A matrix in the given order is already in the factor's order: no permuted copy.
     const MatrixType permuted = in_given_order() ? MatrixType() : ldlt.permuted_lower(A);
     const MatrixType& lower = in_given_order() ? A : permuted;
-    if(!ldlt.factorize_in(static_cast<double*>(L->x), lower, Eigen::VectorXd::Zero(n), 0.0) ||
+    if(!ldlt.factorize_in(static_cast<double*>(L->x), lower, Eigen::VectorXd(), 0.0) ||
        !ldlt.scale_to_cholesky()) {
       L->minor = 0;  // which pivot failed matters to no caller
       return;

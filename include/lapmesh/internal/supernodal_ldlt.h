@@ -39,30 +39,54 @@ class Supernodal_ldlt
 public:
   using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
 
+  /// How the structure of the CHOLMOD factor is held.
+  enum class Structure_use {
+    copy,  ///< copied: the factor may be freed or changed afterwards
+    view   ///< read from the factor, which must outlive this object with its structure unchanged
+  };
+
   /// Takes the structure of a supernodal CHOLMOD factor (analysed only, or factorised) of a
-  /// matrix with the pattern of the matrices to be factorised; the factor itself is not kept.
-  explicit Supernodal_ldlt(const cholmod_factor& symbolic)
+  /// matrix with the pattern of the matrices to be factorised; the factor's values are not read.
+  explicit Supernodal_ldlt(const cholmod_factor& symbolic, Structure_use use = Structure_use::copy)
   {
     const int* super = static_cast<const int*>(symbolic.super);
     const int* pi = static_cast<const int*>(symbolic.pi);
     const int* px = static_cast<const int*>(symbolic.px);
     const int* rows = static_cast<const int*>(symbolic.s);
     const int* perm = static_cast<const int*>(symbolic.Perm);
-    const std::size_t nsuper = symbolic.nsuper;
+    m_nsuper = symbolic.nsuper;
     m_n = Eigen::Index(symbolic.n);
-    m_super.assign(super, super + nsuper + 1);
-    m_pi.assign(pi, pi + nsuper + 1);
-    m_px.assign(px, px + nsuper + 1);
-    m_rows.assign(rows, rows + m_pi.back());
-    m_values_size = std::size_t(m_px.back());
-    m_perm.resize(m_n);
+    if(use == Structure_use::view) {
+      m_super = super, m_pi = pi, m_px = px, m_rows = rows, m_matrix_row = perm;
+    } else {  // one block: supernodes, row pointers, value pointers, rows, the matrix's rows
+      const std::size_t pointers = m_nsuper + 1, row_count = std::size_t(pi[m_nsuper]);
+      m_structure_copy.resize(3 * pointers + row_count + std::size_t(m_n));
+      int* out = m_structure_copy.data();
+      const auto take = [&out](const int* from, std::size_t count) {
+        const int* start = out;
+        out = std::copy(from, from + count, out);
+        return start;
+      };
+      m_super = take(super, pointers);
+      m_pi = take(pi, pointers);
+      m_px = take(px, pointers);
+      m_rows = take(rows, row_count);
+      m_matrix_row = take(perm, std::size_t(m_n));
+    }
+    m_values_size = std::size_t(m_px[m_nsuper]);
     // CHOLMOD: row i of the factor is row Perm[i] of the matrix; Eigen: P maps old to new.
-    m_matrix_row.assign(perm, perm + m_n);
+    m_perm.resize(m_n);
     for(Eigen::Index i = 0; i < m_n; ++i) m_perm.indices()[perm[i]] = int(i);
     m_super_of_column.resize(std::size_t(m_n));
-    for(std::size_t s = 0; s < nsuper; ++s)
+    for(std::size_t s = 0; s < m_nsuper; ++s)
       for(int j = m_super[s]; j < m_super[s + 1]; ++j) m_super_of_column[std::size_t(j)] = int(s);
   }
+  // The structure may point into m_structure_copy, whose buffer a move hands over but a copy
+  // does not.
+  Supernodal_ldlt(const Supernodal_ldlt&) = delete;
+  Supernodal_ldlt& operator=(const Supernodal_ldlt&) = delete;
+  Supernodal_ldlt(Supernodal_ldlt&&) = default;
+  Supernodal_ldlt& operator=(Supernodal_ldlt&&) = default;
 
   Eigen::Index rows() const { return m_n; }
   /// The fill-reducing permutation P: the factorisation is of P A P^T.
@@ -77,8 +101,9 @@ public:
     return out;
   }
 
-  /// Factorises B - shift diag(d) as L D L^T, B = permuted_lower(A) and d indexed as A.
-  /// False on a zero pivot (the matrix is singular to working precision at that pivot).
+  /// Factorises B - shift diag(d) as L D L^T, B = permuted_lower(A) and d indexed as A (not read,
+  /// and may be empty, when the shift is zero). False on a zero pivot (the matrix is singular to
+  /// working precision at that pivot).
   bool factorize(const Eigen::SparseMatrix<double>& permuted_lower_triangle, const Eigen::VectorXd& d,
                  double shift)
   {
@@ -97,7 +122,7 @@ public:
   bool factorize_in(double* storage, const Eigen::SparseMatrix<double>& permuted_lower_triangle,
                     const Eigen::VectorXd& d, double shift)
   {
-    const std::size_t nsuper = m_super.size() - 1;
+    const std::size_t nsuper = m_nsuper;
     m_values = storage;
     std::fill(m_values, m_values + m_values_size, 0.0);
     m_pivots.setZero(m_n);
@@ -108,7 +133,7 @@ public:
     for(std::size_t s = 0; s < nsuper; ++s) {
       const int k1 = m_super[s], k2 = m_super[s + 1], ncol = k2 - k1;
       const int nrow = m_pi[s + 1] - m_pi[s];
-      const int* srows = m_rows.data() + m_pi[s];
+      const int* srows = m_rows + m_pi[s];
       double* X = m_values + m_px[s];
       for(int i = 0; i < nrow; ++i) m_position[std::size_t(srows[i])] = i;
       // The matrix's columns k1..k2-1, shifted.
@@ -116,7 +141,7 @@ public:
         double* column = X + std::size_t(j - k1) * std::size_t(nrow);
         for(Eigen::SparseMatrix<double>::InnerIterator it(permuted_lower_triangle, j); it; ++it)
           if(it.row() >= j) column[m_position[std::size_t(it.row())]] += it.value();
-        column[j - k1] -= shift * d[m_matrix_row[std::size_t(j)]];
+        if(shift != 0) column[j - k1] -= shift * d[m_matrix_row[std::size_t(j)]];
       }
       // The updates of every descendant supernode with rows in [k1, k2).
       for(int desc = m_head[s]; desc >= 0;) {
@@ -136,7 +161,7 @@ public:
   template <typename Rhs>
   Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
   {
-    const std::size_t nsuper = m_super.size() - 1;
+    const std::size_t nsuper = m_nsuper;
     m_rhs = m_perm * b;
     for(std::size_t s = 0; s < nsuper; ++s) {  // L y = P b
       const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
@@ -145,7 +170,7 @@ public:
       X.topRows(ncol).triangularView<Eigen::UnitLower>().solveInPlace(y);
       if(nrow == ncol) continue;
       m_below.noalias() = X.bottomRows(nrow - ncol) * y;
-      const int* below_rows = m_rows.data() + m_pi[s] + ncol;
+      const int* below_rows = m_rows + m_pi[s] + ncol;
       for(int i = 0; i < nrow - ncol; ++i) m_rhs.row(below_rows[i]) -= m_below.row(i);
     }
     m_rhs = m_pivots.cwiseInverse().asDiagonal() * m_rhs;
@@ -154,7 +179,7 @@ public:
       const Const_block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
       auto x = m_rhs.middleRows(k1, ncol);
       if(nrow > ncol) {
-        const int* below_rows = m_rows.data() + m_pi[s] + ncol;
+        const int* below_rows = m_rows + m_pi[s] + ncol;
         m_below.resize(nrow - ncol, m_rhs.cols());
         for(int i = 0; i < nrow - ncol; ++i) m_below.row(i) = m_rhs.row(below_rows[i]);
         x.noalias() -= X.bottomRows(nrow - ncol).transpose() * m_below;
@@ -169,7 +194,7 @@ public:
   bool scale_to_cholesky()
   {
     if(!(m_pivots.array() > 0).all()) return false;
-    for(std::size_t s = 0; s + 1 < m_super.size(); ++s) {
+    for(std::size_t s = 0; s < m_nsuper; ++s) {
       const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
       Block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
       for(int c = 0; c < ncol; ++c) {
@@ -217,7 +242,7 @@ private:
   {
     const int dk1 = m_super[d], dcol = m_super[d + 1] - dk1;
     const int drow = m_pi[d + 1] - m_pi[d];
-    const int* drows = m_rows.data() + m_pi[d];
+    const int* drows = m_rows + m_pi[d];
     const int k1 = m_super[s], k2 = m_super[s + 1];
     const int start = m_progress[d];
     int stop = start;
@@ -270,8 +295,15 @@ private:
   }
 
   Eigen::Index m_n = 0;
-  std::vector<int> m_super, m_pi, m_px, m_rows, m_super_of_column;
-  std::vector<int> m_matrix_row;  // the matrix's row (and column) at each row of the factor
+  std::size_t m_nsuper = 0;
+  // CHOLMOD's supernodal structure, in the factor or in m_structure_copy.
+  const int* m_super = nullptr;
+  const int* m_pi = nullptr;
+  const int* m_px = nullptr;
+  const int* m_rows = nullptr;
+  const int* m_matrix_row = nullptr;  // the matrix's row (and column) at each row of the factor
+  std::vector<int> m_structure_copy;
+  std::vector<int> m_super_of_column;
   std::size_t m_values_size = 0;
   std::vector<double> m_own_values;
   double* m_values = nullptr;  // the last factorisation's values
