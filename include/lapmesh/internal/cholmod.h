@@ -265,7 +265,7 @@ public:
     m_factorised_by_lapmesh = m_analysisIsOk && m_cholmodFactor->is_super && factorises_by_lapmesh_on(m_analysed_supernodes);
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
-      // Its work space (a copy of the structure, the update blocks) lies freed in the heap:
+      // Its work space (the update blocks, the per-column lists) lies freed in the heap:
       // handed back, it is not resident beside the next assembly of a smoothing run.
       release_free_heap(std::size_t(16) << 20);
       return;

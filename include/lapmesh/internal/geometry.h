@@ -19,6 +19,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -220,11 +221,17 @@ inline void throw_face_defect(Index f, Face_defect d)
   throw Mesh_error(out_of_range_message(f, d), Mesh_error::Element::face, f);
 }
 
+/// The three corner positions of face f.
+inline std::array<Eigen::Vector3d, 3> face_points(const Mesh_topology& t, const Positions& P, Index f)
+{
+  return {P.row(t.triangles[3 * f]).transpose(), P.row(t.triangles[3 * f + 1]).transpose(),
+          P.row(t.triangles[3 * f + 2]).transpose()};
+}
+
 /// Throws the Mesh_error of face f, which face_in_range() refused.
 inline void throw_refused_face(const Mesh_topology& t, const Positions& P, Index f)
 {
-  const Index* tri = t.triangles.data();
-  const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
+  const auto [p0, p1, p2] = face_points(t, P, f);
   const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
   throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
 }
@@ -233,13 +240,11 @@ inline void throw_refused_face(const Mesh_topology& t, const Positions& P, Index
 /// area, or out of the representable range), without computing anything else.
 inline void require_faces_in_range(const Mesh_topology& t, const Positions& P, bool parallel)
 {
-  const Index* tri = t.triangles.data();
   First_index<Index> first_refused;
   for_each_index(t.num_faces, parallel, [&](Index f) {
-    const Eigen::Vector3d p0 = P.row(tri[3 * f]), p1 = P.row(tri[3 * f + 1]), p2 = P.row(tri[3 * f + 2]);
-    const Eigen::Vector3d e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0;
-    const Eigen::Vector3d cross = e2.cross(-e1);
-    const double longest = std::max(e0.squaredNorm(), std::max(e1.squaredNorm(), e2.squaredNorm()));
+    const auto [p0, p1, p2] = face_points(t, P, f);
+    const Eigen::Vector3d cross = (p1 - p0).cross(p2 - p0);
+    const double longest = std::max({(p1 - p0).squaredNorm(), (p2 - p1).squaredNorm(), (p0 - p2).squaredNorm()});
     if(!face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()))) first_refused.record(f);
   });
   if(!first_refused.empty()) throw_refused_face(t, P, first_refused.get());

@@ -10,18 +10,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include <array>
 #include <cmath>
 
 namespace lapmesh {
 namespace internal {
-
-/// The three corner positions of face f.
-inline std::array<Eigen::Vector3d, 3> face_points(const Mesh_topology& t, const Positions& P, Index f)
-{
-  return {P.row(t.triangles[3 * f]).transpose(), P.row(t.triangles[3 * f + 1]).transpose(),
-          P.row(t.triangles[3 * f + 2]).transpose()};
-}
 
 /// Signed enclosed volume (divergence theorem) and volume centroid of a closed mesh.
 inline void volume_and_centroid(const Mesh_topology& t, const Positions& P, double& volume, Eigen::Vector3d& centroid)
