@@ -152,7 +152,7 @@ public:
       ++m_report.iterations;
       if(m_s.progress) m_s.progress(it + 1, m_s.iterations);
     }
-    check_last_faces();
+    check_last_positions();
     return m_report;
   }
 
@@ -314,13 +314,23 @@ private:
            !std::equal(m_pattern_inner.begin(), m_pattern_inner.end(), S.innerIndexPtr());
   }
 
-  /// A flow whose operator follows the positions stops at the first step that collapses a face,
-  /// whether or not another step follows: the last step's faces get the face check of the next
-  /// operator's assembly. The intrinsic Delaunay operator takes such faces.
-  void check_last_faces() const
+  /// A flow whose operator follows the positions stops at the first step that collapses a face
+  /// or, with Voronoi areas, makes a vertex area non-positive, whether or not another step
+  /// follows: the last step's positions get the checks of the next operator's assembly. Not the
+  /// intrinsic Delaunay operator: it takes such faces, and its areas are those of its own
+  /// triangulation, which is not rebuilt only for a check.
+  void check_last_positions() const
   {
     if(!m_rebuild || m_s.laplacian == Laplacian::intrinsic_delaunay) return;
-    rebuild_operator_after(m_s.iterations, [&] { require_faces_in_range(m_t, m_P, m_s.parallel); });
+    rebuild_operator_after(m_s.iterations, [&] {
+      if(m_s.area == Vertex_area::voronoi) {
+        // The only kind of area that valid faces can make non-positive. Summed serially: the
+        // parallel sums read the corner lists, which release_topology() may have freed.
+        require_positive_mass(vertex_areas(m_t, m_P, m_s.area, false), m_s.area);
+      } else {
+        require_faces_in_range(m_t, m_P, m_s.parallel);
+      }
+    });
   }
 
   /// Volume or area restoration; the explicit scheme's divergence check.
