@@ -465,8 +465,20 @@ private:
     // M - lambda S is positive definite in exact arithmetic (M > 0, and -S is a sum of
     // positive semidefinite element matrices, negative cotangent weights included), so a
     // failure is numerical: nearly degenerate faces with huge cotangent weights. Name the
-    // flattest face, in the words of the zero-area error (positions after `it` steps).
+    // flattest face, in the words of the zero-area error (positions after `it` steps), unless
+    // the whole mesh shrank so far that M is lost beside lambda S, whose null space holds the
+    // constant vectors: then no face is to blame.
     if(!ok) {
+      const double area = m_pencil.mass.sum();
+      if(m_rebuild && area < 1e-12 * m_s.lambda) {
+        char ratio[32];
+        std::snprintf(ratio, sizeof ratio, "%.2g", area / m_s.lambda);
+        throw Numerical_error("iteration " + std::to_string(it) +
+                              ": the flow shrank the mesh to nearly a point (its area is " + ratio +
+                              " x lambda), and the Cholesky factorisation of M - lambda S for the next step failed (" +
+                              m_solver->failure() + "): M is then negligible beside lambda S; a smaller lambda, fewer "
+                              "iterations or a fixed operator avoid this");
+      }
       const auto [face, flatness] = flattest_face(m_t, m_P);
       if(!(flatness < 1e-6))  // no face to blame (a user's solver that failed, say)
         throw Numerical_error("iteration " + std::to_string(it + 1) + ": the factorisation of M - lambda S failed (" +
