@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -149,6 +150,49 @@ std::vector<std::string> warning_texts(const std::vector<lapmesh_ops::Warning>& 
   return out;
 }
 
+// F as int64. numpy's own cast would truncate a fraction, turn NaN into an arbitrary index and
+// wrap unsigned indices above 2^63: an array of floats is taken only when every value is a whole
+// number (np.loadtxt gives such arrays), and only integer or float arrays are taken at all.
+Indices indices_of(const py::object& F)
+{
+  const py::array a = py::array::ensure(F);
+  if(!a) throw py::type_error("F must be an array of shape (m, 3) of integers");
+  require_shape(a, "F", "m");
+  const char kind = a.dtype().kind();
+  if(kind == 'f') {
+    const auto d = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+    const double* x = d.data();
+    for(py::ssize_t i = 0; i < d.size(); ++i)
+      if(!(std::floor(x[i]) == x[i] && std::abs(x[i]) < 0x1p62))
+        throw py::value_error("F must hold whole vertex indices: F[" + std::to_string(i / 3) + ", " +
+                              std::to_string(i % 3) + "] is " + py::str(py::float_(x[i])).cast<std::string>());
+  } else if(kind == 'u') {
+    const auto u = py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+    const std::uint64_t* x = u.data();
+    for(py::ssize_t i = 0; i < u.size(); ++i)
+      if(x[i] > std::uint64_t(std::numeric_limits<std::int64_t>::max()))
+        throw py::value_error("F[" + std::to_string(i / 3) + ", " + std::to_string(i % 3) + "] is " +
+                              std::to_string(x[i]) + ", beyond any vertex index");
+  } else if(kind != 'i') {
+    throw py::type_error("F must be an array of shape (m, 3) of integers, got dtype " +
+                         py::str(a.dtype()).cast<std::string>());
+  }
+  return Indices::ensure(a);
+}
+
+// V as float64: integer and float arrays only (numpy's cast would drop a complex value's
+// imaginary part and read booleans as 0 and 1).
+Coordinates coordinates_of(const py::object& V)
+{
+  const py::array a = py::array::ensure(V);
+  if(!a) throw py::type_error("V must be an array of shape (n, 3) of numbers");
+  const char kind = a.dtype().kind();
+  if(kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error("V must be an array of shape (n, 3) of real numbers, got dtype " +
+                         py::str(a.dtype()).cast<std::string>());
+  return Coordinates::ensure(a);
+}
+
 // The mesh of (V, F): validated and oriented as a file would be (lapmesh_ops::mesh_from_soup).
 // Only the soup is built with the GIL held (it reads the arrays).
 lapmesh_ops::Loaded_mesh mesh_of(const Coordinates& V, const Indices& F)
@@ -197,11 +241,7 @@ std::shared_ptr<const Mesh> mesh_arg(const py::object& V, const py::object& F)
     return V.cast<const Validated_mesh&>().mesh;
   }
   if(F.is_none()) throw py::type_error("F is missing: give the arrays (V, F) or a lapmesh.Mesh");
-  const Coordinates v = Coordinates::ensure(V);
-  if(!v) throw py::type_error("V must be an array of shape (n, 3) of numbers");
-  const Indices f = Indices::ensure(F);
-  if(!f) throw py::type_error("F must be an array of shape (m, 3) of integers");
-  return std::make_shared<const Mesh>(mesh_of(v, f).mesh);
+  return std::make_shared<const Mesh>(mesh_of(coordinates_of(V), indices_of(F)).mesh);
 }
 
 // Runs `f` with the I/O errors prefixed by the file name (the library leaves it out).
@@ -414,7 +454,9 @@ PYBIND11_MODULE(_lapmesh, m)
 
   m.def(
     "write_mesh",
-    [](const std::string& path, const Coordinates& V, const Indices& F) {
+    [](const std::string& path, const py::object& V_arg, const py::object& F_arg) {
+      const Coordinates V = coordinates_of(V_arg);
+      const Indices F = indices_of(F_arg);
       require_shape(V, "V", "n");
       require_shape(F, "F", "m");
       lapmesh::Vertex_vectors P(V.shape(0), 3);

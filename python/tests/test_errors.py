@@ -52,6 +52,35 @@ def test_bad_shapes(cow):
         lapmesh.curvatures("not an array", F)
 
 
+@pytest.mark.parametrize("value", [0.5, float("nan"), float("inf")])
+def test_faces_as_floats_must_be_whole_numbers(cow, value):
+    # Floats holding whole numbers (np.loadtxt's arrays) are indices; anything else is refused
+    # instead of being truncated into another mesh.
+    V, F = cow
+    Ff = F.astype(float)
+    assert np.array_equal(lapmesh.curvatures(V, Ff).mean, lapmesh.curvatures(V, F).mean)
+    Ff[4, 1] = F[4, 1] + value
+    for call in (lambda: lapmesh.curvatures(V, Ff), lambda: lapmesh.Mesh(V, Ff)):
+        with pytest.raises(ValueError, match=r"F must hold whole vertex indices: F\[4, 1\] is "):
+            call()
+
+
+def test_faces_beyond_int64_and_odd_dtypes_are_refused(cow, tmp_path):
+    V, F = cow
+    Fu = F.astype(np.uint64)
+    assert np.array_equal(lapmesh.curvatures(V, Fu).mean, lapmesh.curvatures(V, F).mean)
+    Fu[2, 0] = np.uint64(2**64 - 1)  # int64's cast would make it -1
+    with pytest.raises(ValueError, match=r"F\[2, 0\] is 18446744073709551615, beyond any vertex index"):
+        lapmesh.smooth(V, Fu)
+    with pytest.raises(ValueError, match=r"F\[2, 0\] is 18446744073709551615"):
+        lapmesh.write_mesh(str(tmp_path / "u.off"), V, Fu)
+    assert not os.path.exists(tmp_path / "u.off")
+    with pytest.raises(TypeError, match="F must be an array of shape \\(m, 3\\) of integers, got dtype bool"):
+        lapmesh.curvatures(V, F > 0)
+    with pytest.raises(TypeError, match="V must be an array of shape \\(n, 3\\) of real numbers, got dtype complex128"):
+        lapmesh.curvatures(V + 0j, F)
+
+
 @pytest.mark.parametrize("fn,kwargs", [
     (lapmesh.curvatures, dict(laplacian="cotan")),
     (lapmesh.curvatures, dict(area="circumcentric")),
