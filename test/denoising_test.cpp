@@ -10,6 +10,7 @@
 #include <lapmesh/laplacian_smoothing.h>
 #include <lapmesh/noise.h>
 
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/distance.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -720,6 +721,40 @@ TEST(Denoising, AFlowThatShrinksTheMeshToAPointSaysSo)
       smoothed, 5.0, LP::vertex_area(area, LP::fixed_operator(true, CGAL::parameters::number_of_iterations(10)))));
     for(auto v : vertices(smoothed)) EXPECT_TRUE(std::isfinite(smoothed.point(v).x()));
   }
+}
+
+// The same for one connected component: CGAL's bones (several components) under a conformal
+// flow with area restoration and a free boundary keep their total area, but a small bone
+// shrinks to a point, and the error names it by its first vertex and size.
+TEST(Denoising, AFlowThatShrinksOneComponentToAPointNamesIt)
+{
+  Mesh bones;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh("bones.off"), bones);
+  std::string error;
+  try {
+    lapmesh::smooth_conformal_flow(
+      bones, 0.07, LP::restore_area(true, LP::fix_boundary(false, CGAL::parameters::number_of_iterations(10))));
+  } catch(const lapmesh::Numerical_error& e) {
+    error = e.what();
+  }
+  ASSERT_EQ(error.rfind("iteration ", 0), 0u) << error;
+  const std::string named = ": the flow shrank the connected component of vertex ";
+  const std::size_t at = error.find(named);
+  ASSERT_NE(at, std::string::npos) << error;
+  // The component named, by CGAL's face components: its smallest vertex and its vertex count.
+  const std::size_t first = std::stoul(error.substr(at + named.size()));
+  const std::size_t size = std::stoul(error.substr(error.find(" (", at + named.size()) + 2));
+  Mesh input;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh("bones.off"), input);
+  auto face_component = input.add_property_map<Mesh::Face_index, std::size_t>("f:component").first;
+  ASSERT_GT(CGAL::Polygon_mesh_processing::connected_components(input, face_component), 1u);
+  std::vector<std::size_t> component(num_vertices(input));
+  for(auto f : faces(input))
+    for(auto v : vertices_around_face(halfedge(f, input), input)) component[v.idx()] = face_component[f];
+  ASSERT_LT(first, component.size());
+  EXPECT_EQ(std::size_t(std::count(component.begin(), component.end(), component[first])), size);
+  EXPECT_EQ(std::size_t(std::find(component.begin(), component.end(), component[first]) - component.begin()), first);
+  EXPECT_LT(std::stod(error.substr(error.find("its area is ") + 12)), 1e-12) << error;
 }
 
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a

@@ -25,6 +25,7 @@
 #include <lapmesh/internal/shape_restoration.h>
 #include <lapmesh/internal/spd_solver.h>
 #include <lapmesh/internal/stability_bound.h>
+#include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
 #include <Eigen/Core>
@@ -466,19 +467,10 @@ private:
     // positive semidefinite element matrices, negative cotangent weights included), so a
     // failure is numerical: nearly degenerate faces with huge cotangent weights. Name the
     // flattest face, in the words of the zero-area error (positions after `it` steps), unless
-    // the whole mesh shrank so far that M is lost beside lambda S, whose null space holds the
-    // constant vectors: then no face is to blame.
+    // a connected component shrank so far that its part of M is lost beside lambda S, whose
+    // null space holds the component's constant vectors: then no face is to blame.
     if(!ok) {
-      const double area = m_pencil.mass.sum();
-      if(m_rebuild && area < 1e-12 * m_s.lambda) {
-        char ratio[32];
-        std::snprintf(ratio, sizeof ratio, "%.2g", area / m_s.lambda);
-        throw Numerical_error("iteration " + std::to_string(it) +
-                              ": the flow shrank the mesh to nearly a point (its area is " + ratio +
-                              " x lambda), and the Cholesky factorisation of M - lambda S for the next step failed (" +
-                              m_solver->failure() + "): M is then negligible beside lambda S; a smaller lambda, fewer "
-                              "iterations or a fixed operator avoid this");
-      }
+      if(m_rebuild) throw_if_shrunk_to_a_point(it);
       const auto [face, flatness] = flattest_face(m_t, m_P);
       if(!(flatness < 1e-6))  // no face to blame (a user's solver that failed, say)
         throw Numerical_error("iteration " + std::to_string(it + 1) + ": the factorisation of M - lambda S failed (" +
@@ -494,6 +486,33 @@ private:
     }
     m_factorized = true;
     m_report.factorization_seconds += seconds_since(t0);
+  }
+
+  /// The error of a failed factorisation after `it` steps when a connected component's area
+  /// (its vertex areas' sum) is below 1e-12 x lambda; nothing otherwise.
+  void throw_if_shrunk_to_a_point(int it) const
+  {
+    Index components = 0;
+    const std::vector<Index> component = connected_component_labels(m_t, &components);
+    std::vector<double> area(std::size_t(components), 0.0);
+    std::vector<Index> size(std::size_t(components), 0);
+    for(Index v = 0; v < m_t.num_vertices; ++v) {
+      area[std::size_t(component[v])] += m_pencil.mass[v];
+      ++size[std::size_t(component[v])];
+    }
+    const auto smallest = std::size_t(std::min_element(area.begin(), area.end()) - area.begin());
+    if(!(area[smallest] < 1e-12 * m_s.lambda)) return;
+    char ratio[32];
+    std::snprintf(ratio, sizeof ratio, "%.2g", area[smallest] / m_s.lambda);
+    const Index first = Index(std::find(component.begin(), component.end(), Index(smallest)) - component.begin());
+    const std::string what = components == 1 ? std::string("the mesh")
+                                             : "the connected component of vertex " + std::to_string(first) + " (" +
+                                                 std::to_string(size[smallest]) + " vertices)";
+    throw Numerical_error("iteration " + std::to_string(it) + ": the flow shrank " + what +
+                          " to nearly a point (its area is " + ratio +
+                          " x lambda), and the Cholesky factorisation of M - lambda S for the next step failed (" +
+                          m_solver->failure() + "): M is then negligible beside lambda S; a smaller lambda, fewer "
+                          "iterations or a fixed operator avoid this");
   }
 
   const Mesh_topology& m_t;

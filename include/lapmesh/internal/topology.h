@@ -798,8 +798,10 @@ inline void require_manifold(const Mesh_topology& t, const char* operator_name)
                    Mesh_error::Element::face, f);
 }
 
-/// Number of connected components (through edges), by union–find over the faces.
-inline Index count_connected_components(const Mesh_topology& t)
+/// The connected component (through edges) of each vertex, by union–find over the faces,
+/// numbered from 0 in the order of their first vertices; a vertex in no face is a component of
+/// its own. `count`, if given, receives the number of components.
+inline std::vector<Index> connected_component_labels(const Mesh_topology& t, Index* count = nullptr)
 {
   std::vector<Index> parent(t.num_vertices);
   for(Index v = 0; v < t.num_vertices; ++v) parent[v] = v;
@@ -812,8 +814,22 @@ inline Index count_connected_components(const Mesh_topology& t)
       const Index x = find(t.triangles[3 * f]), y = find(t.triangles[3 * f + a]);
       if(x != y) parent[std::max(x, y)] = std::min(x, y);
     }
+  // A root is its component's smallest vertex, so it is labelled before the rest of it.
+  std::vector<Index> label(t.num_vertices);
+  Index components = 0;
+  for(Index v = 0; v < t.num_vertices; ++v) {
+    const Index r = find(v);
+    label[v] = r == v ? components++ : label[r];
+  }
+  if(count) *count = components;
+  return label;
+}
+
+/// Number of connected components (through edges).
+inline Index count_connected_components(const Mesh_topology& t)
+{
   Index count = 0;
-  for(Index v = 0; v < t.num_vertices; ++v) count += (find(v) == v);
+  connected_component_labels(t, &count);
   return count;
 }
 
