@@ -68,3 +68,31 @@ TEST(Noise, StatisticsMatchSigma)
     EXPECT_NEAR(rms(along), sigma, 0.03 * sigma);
   }
 }
+
+// Normal noise passes over a zero-area face (it has no normal and weighs nothing in the
+// area-weighted normals) instead of refusing the mesh: on an icosphere with one face split into
+// two and a collinear sliver (closed and manifold), it moves every vertex exactly as on the same
+// mesh without the sliver. Before, the sliver made the call throw.
+TEST(Noise, NormalNoisePassesOverAZeroAreaFace)
+{
+  lapmesh::Triangle_soup soup = lapmesh::icosphere(2);
+  const std::array<int, 3> split = soup.triangles.front();  // (a, b, c)
+  const auto &pa = soup.points[std::size_t(split[0])], &pb = soup.points[std::size_t(split[1])];
+  const int m = int(soup.points.size());
+  soup.points.push_back({0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1]), 0.5 * (pa[2] + pb[2])});
+  soup.triangles.front() = {split[0], m, split[2]};
+  soup.triangles.push_back({m, split[1], split[2]});
+  lapmesh::Triangle_soup without_sliver = soup;
+  soup.triangles.push_back({m, split[0], split[1]});  // collinear: zero area
+
+  Mesh with = to_mesh(soup), without = to_mesh(without_sliver);
+  ASSERT_EQ(num_faces(with), num_faces(without) + 1);
+  const Eigen::MatrixXd before = positions(with);
+  // Scaled by the bounding box, which the sliver does not change (the mean edge length would).
+  const auto np = LP::noise_scale(lapmesh::Noise_scale::bounding_box_diagonal,
+                                  LP::noise_direction(lapmesh::Noise_direction::normal, LP::noise_seed(std::uint64_t(11))));
+  ASSERT_NO_THROW(lapmesh::add_noise(with, 0.05, np));
+  lapmesh::add_noise(without, 0.05, np);
+  EXPECT_EQ((positions(with) - positions(without)).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((positions(with) - before).rowwise().norm().minCoeff(), 0.0);  // every vertex has a normal
+}

@@ -17,6 +17,7 @@
 #include <lapmesh/parameters.h>
 #include <lapmesh/types.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -75,6 +76,27 @@ inline double noise_sigma(const Mesh_topology& t, const Positions& P, double lev
   return level * (hi - lo).norm();
 }
 
+/// Area-weighted unit vertex normals for normal noise. A face of zero area has no normal and
+/// weighs nothing, so it is passed over (a vertex with no other face gets no normal and stays
+/// in place) instead of refusing the mesh; a face out of the representable range is refused.
+inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
+{
+  Positions sums = Positions::Zero(t.num_vertices, 3);
+  for(Index f = 0; f < t.num_faces; ++f) {
+    const auto [p0, p1, p2] = face_points(t, P, f);
+    const Eigen::Vector3d e1 = p0 - p2, e2 = p1 - p0;  // the expression of compute_corner_geometry()
+    const Eigen::Vector3d cross = e2.cross(-e1);
+    const double longest = std::max({e1.squaredNorm(), e2.squaredNorm(), (p2 - p1).squaredNorm()});
+    if(!face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()))) {
+      const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
+      if(d == Face_defect::none || d == Face_defect::zero_area) continue;
+      throw_face_defect(f, d);
+    }
+    for(Index a = 0; a < 3; ++a) sums.row(t.triangles[3 * f + a]) += cross.transpose();
+  }
+  return vertex_normals(std::move(sums), false);
+}
+
 /// Adds noise to P in place; returns sigma.
 inline double add_noise(const Mesh_topology& t, Positions& P, double level, Noise_direction direction,
                         Noise_scale scale, std::uint64_t seed)
@@ -92,9 +114,7 @@ inline double add_noise(const Mesh_topology& t, Positions& P, double level, Nois
     }
     return sigma;
   }
-  Corner_geometry geo;
-  compute_corner_geometry(t, P, Corner_request{Vertex_area::barycentric, false, true, false}, false, geo);
-  const Positions N = vertex_normals(std::move(geo.face_normal_sum), false);
+  const Positions N = noise_normals(t, P);
   for(Index i = 0; i < t.num_vertices; ++i) P.row(i) += sigma * g() * N.row(i);
   return sigma;
 }
