@@ -180,17 +180,22 @@ Indices indices_of(const py::object& F)
   return Indices::ensure(a);
 }
 
-// V as float64: integer and float arrays only (numpy's cast would drop a complex value's
-// imaginary part and read booleans as 0 and 1).
+// `a` as float64, from integer and float arrays only: numpy's cast would drop a complex value's
+// imaginary part (with no more than a warning) and read booleans as 0 and 1. `what` begins the
+// message of a refusal ("V must be an array of shape (n, 3)").
+py::array_t<double, py::array::forcecast> real_array(const py::object& a, const std::string& what)
+{
+  const py::array array = py::array::ensure(a);
+  if(!array) throw py::type_error(what + " of numbers");
+  const char kind = array.dtype().kind();
+  if(kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error(what + " of real numbers, got dtype " + py::str(array.dtype()).cast<std::string>());
+  return py::array_t<double, py::array::forcecast>::ensure(array);
+}
+
 Coordinates coordinates_of(const py::object& V)
 {
-  const py::array a = py::array::ensure(V);
-  if(!a) throw py::type_error("V must be an array of shape (n, 3) of numbers");
-  const char kind = a.dtype().kind();
-  if(kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::type_error("V must be an array of shape (n, 3) of real numbers, got dtype " +
-                         py::str(a.dtype()).cast<std::string>());
-  return Coordinates::ensure(a);
+  return Coordinates::ensure(real_array(V, "V must be an array of shape (n, 3)"));
 }
 
 // The mesh of (V, F): validated and oriented as a file would be (lapmesh_ops::mesh_from_soup).
@@ -649,7 +654,8 @@ PYBIND11_MODULE(_lapmesh, m)
       "(as `lapmesh reconstruct -k K`). Warns when k splits an eigenspace.")
     .def(
       "project",
-      [](const Basis& b, const py::array_t<double, py::array::forcecast>& signal, long long k) {
+      [](const Basis& b, const py::object& signal_arg, long long k) {
+        const auto signal = real_array(signal_arg, "signal must be an array of shape (n,) or (n, c)");
         const bool vector = signal.ndim() == 1;
         if(signal.ndim() != 1 && signal.ndim() != 2)
           throw py::value_error("signal must be an array of shape (n,) or (n, c)");

@@ -79,6 +79,10 @@ def test_faces_beyond_int64_and_odd_dtypes_are_refused(cow, tmp_path):
         lapmesh.curvatures(V, F > 0)
     with pytest.raises(TypeError, match="V must be an array of shape \\(n, 3\\) of real numbers, got dtype complex128"):
         lapmesh.curvatures(V + 0j, F)
+    basis = lapmesh.SpectralBasis(V, F, 5)
+    assert np.array_equal(basis.project(V.astype(np.float32), 5), basis.project(V.astype(np.float32).astype(float), 5))
+    with pytest.raises(TypeError, match="signal must be an array of shape .* of real numbers, got dtype complex128"):
+        basis.project(V + 1j, 5)
 
 
 @pytest.mark.parametrize("fn,kwargs", [
