@@ -150,14 +150,22 @@ std::vector<std::string> warning_texts(const std::vector<lapmesh_ops::Warning>& 
   return out;
 }
 
+// An array of Python objects (numbers, say) as float64, by numpy, which raises on an object that
+// is not a number; the checks of a float array then apply.
+py::array object_array_as_float(const py::array& a)
+{
+  return py::module_::import("numpy").attr("asarray")(a, "float64");
+}
+
 // F as int64. numpy's own cast would truncate a fraction, turn NaN into an arbitrary index and
 // wrap unsigned indices above 2^63: an array of floats is taken only when every value is a whole
 // number (np.loadtxt gives such arrays), and only integer or float arrays are taken at all.
 Indices indices_of(const py::object& F)
 {
-  const py::array a = py::array::ensure(F);
+  py::array a = py::array::ensure(F);
   if(!a) throw py::type_error("F must be an array of shape (m, 3) of integers");
   require_shape(a, "F", "m");
+  if(a.dtype().kind() == 'O') a = object_array_as_float(a);
   const char kind = a.dtype().kind();
   if(kind == 'f') {
     const auto d = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
@@ -185,8 +193,9 @@ Indices indices_of(const py::object& F)
 // message of a refusal ("V must be an array of shape (n, 3)").
 py::array_t<double, py::array::forcecast> real_array(const py::object& a, const std::string& what)
 {
-  const py::array array = py::array::ensure(a);
+  py::array array = py::array::ensure(a);
   if(!array) throw py::type_error(what + " of numbers");
+  if(array.dtype().kind() == 'O') array = object_array_as_float(array);
   const char kind = array.dtype().kind();
   if(kind != 'f' && kind != 'i' && kind != 'u')
     throw py::type_error(what + " of real numbers, got dtype " + py::str(array.dtype()).cast<std::string>());

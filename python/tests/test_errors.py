@@ -79,6 +79,12 @@ def test_faces_beyond_int64_and_odd_dtypes_are_refused(cow, tmp_path):
         lapmesh.curvatures(V, F > 0)
     with pytest.raises(TypeError, match="V must be an array of shape \\(n, 3\\) of real numbers, got dtype complex128"):
         lapmesh.curvatures(V + 0j, F)
+    # Arrays of Python numbers (dtype object) are taken as numbers, with the same checks.
+    assert np.array_equal(lapmesh.curvatures(V.astype(object), F.astype(object)).mean, lapmesh.curvatures(V, F).mean)
+    Fo = F.astype(object)
+    Fo[3, 2] = 2.5
+    with pytest.raises(ValueError, match=r"F must hold whole vertex indices: F\[3, 2\] is 2.5"):
+        lapmesh.curvatures(V, Fo)
     basis = lapmesh.SpectralBasis(V, F, 5)
     assert np.array_equal(basis.project(V.astype(np.float32), 5), basis.project(V.astype(np.float32).astype(float), 5))
     with pytest.raises(TypeError, match="signal must be an array of shape .* of real numbers, got dtype complex128"):
