@@ -17,7 +17,6 @@
 #include <lapmesh/parameters.h>
 #include <lapmesh/types.h>
 
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -82,14 +81,11 @@ inline double noise_sigma(const Mesh_topology& t, const Positions& P, double lev
 inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
 {
   Positions sums = Positions::Zero(t.num_vertices, 3);
+  Eigen::Vector3d cross;
   for(Index f = 0; f < t.num_faces; ++f) {
-    const auto [p0, p1, p2] = face_points(t, P, f);
-    const Eigen::Vector3d e1 = p0 - p2, e2 = p1 - p0;  // the expression of compute_corner_geometry()
-    const Eigen::Vector3d cross = e2.cross(-e1);
-    const double longest = std::max({e1.squaredNorm(), e2.squaredNorm(), (p2 - p1).squaredNorm()});
-    if(!face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()))) {
-      const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
-      if(d == Face_defect::none || d == Face_defect::zero_area) continue;
+    if(!face_cross_in_range(t, P, f, cross)) {
+      const Face_defect d = refused_face_defect(t, P, f);
+      if(d == Face_defect::zero_area) continue;
       throw_face_defect(f, d);
     }
     for(Index a = 0; a < 3; ++a) sums.row(t.triangles[3 * f + a]) += cross.transpose();

@@ -204,15 +204,16 @@ py::array_t<double, py::array::forcecast> real_array(const py::object& a, const 
 
 Coordinates coordinates_of(const py::object& V)
 {
-  return Coordinates::ensure(real_array(V, "V must be an array of shape (n, 3)"));
+  Coordinates v = Coordinates::ensure(real_array(V, "V must be an array of shape (n, 3)"));
+  require_shape(v, "V", "n");
+  return v;
 }
 
-// The mesh of (V, F): validated and oriented as a file would be (lapmesh_ops::mesh_from_soup).
-// Only the soup is built with the GIL held (it reads the arrays).
+// The mesh of (V, F), arrays of coordinates_of() and indices_of(): validated and oriented as a
+// file would be (lapmesh_ops::mesh_from_soup). Only the soup is built with the GIL held (it
+// reads the arrays).
 lapmesh_ops::Loaded_mesh mesh_of(const Coordinates& V, const Indices& F)
 {
-  require_shape(V, "V", "n");
-  require_shape(F, "F", "m");
   lapmesh::io::Polygon_soup soup;
   const auto v = V.unchecked<2>();
   const auto f = F.unchecked<2>();
@@ -255,7 +256,8 @@ std::shared_ptr<const Mesh> mesh_arg(const py::object& V, const py::object& F)
     return V.cast<const Validated_mesh&>().mesh;
   }
   if(F.is_none()) throw py::type_error("F is missing: give the arrays (V, F) or a lapmesh.Mesh");
-  return std::make_shared<const Mesh>(mesh_of(coordinates_of(V), indices_of(F)).mesh);
+  const Coordinates v = coordinates_of(V);  // V's errors before F's
+  return std::make_shared<const Mesh>(mesh_of(v, indices_of(F)).mesh);
 }
 
 // Runs `f` with the I/O errors prefixed by the file name (the library leaves it out).
@@ -471,8 +473,6 @@ PYBIND11_MODULE(_lapmesh, m)
     [](const std::string& path, const py::object& V_arg, const py::object& F_arg) {
       const Coordinates V = coordinates_of(V_arg);
       const Indices F = indices_of(F_arg);
-      require_shape(V, "V", "n");
-      require_shape(F, "F", "m");
       lapmesh::Vertex_vectors P(V.shape(0), 3);
       std::copy(V.data(), V.data() + V.size(), P.data());
       lapmesh_ops::Triangles tris(std::size_t(F.shape(0)));

@@ -228,12 +228,28 @@ inline std::array<Eigen::Vector3d, 3> face_points(const Mesh_topology& t, const 
           P.row(t.triangles[3 * f + 2]).transpose()};
 }
 
-/// Throws the Mesh_error of face f, which face_in_range() refused.
-inline void throw_refused_face(const Mesh_topology& t, const Positions& P, Index f)
+/// Sets `cross` to (p1 - p0) x (p2 - p0) of face f (twice its area times its unit normal) and
+/// says whether face_in_range() takes the face: the test of compute_corner_geometry().
+inline bool face_cross_in_range(const Mesh_topology& t, const Positions& P, Index f, Eigen::Vector3d& cross)
+{
+  const auto [p0, p1, p2] = face_points(t, P, f);
+  cross = (p1 - p0).cross(p2 - p0);
+  const double longest = std::max({(p1 - p0).squaredNorm(), (p2 - p1).squaredNorm(), (p0 - p2).squaredNorm()});
+  return face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()));
+}
+
+/// What is wrong with face f, which face_in_range() refused: zero area, or out of range.
+inline Face_defect refused_face_defect(const Mesh_topology& t, const Positions& P, Index f)
 {
   const auto [p0, p1, p2] = face_points(t, P, f);
   const Face_defect d = face_defect(p0.data(), p1.data(), p2.data());
-  throw_face_defect(f, d == Face_defect::none ? Face_defect::zero_area : d);
+  return d == Face_defect::none ? Face_defect::zero_area : d;
+}
+
+/// Throws the Mesh_error of face f, which face_in_range() refused.
+inline void throw_refused_face(const Mesh_topology& t, const Positions& P, Index f)
+{
+  throw_face_defect(f, refused_face_defect(t, P, f));
 }
 
 /// Throws the Mesh_error of the first face that compute_corner_geometry() would refuse (zero
@@ -242,10 +258,8 @@ inline void require_faces_in_range(const Mesh_topology& t, const Positions& P, b
 {
   First_index<Index> first_refused;
   for_each_index(t.num_faces, parallel, [&](Index f) {
-    const auto [p0, p1, p2] = face_points(t, P, f);
-    const Eigen::Vector3d cross = (p1 - p0).cross(p2 - p0);
-    const double longest = std::max({(p1 - p0).squaredNorm(), (p2 - p1).squaredNorm(), (p0 - p2).squaredNorm()});
-    if(!face_in_range(longest, cross_norm(cross.x(), cross.y(), cross.z()))) first_refused.record(f);
+    Eigen::Vector3d cross;
+    if(!face_cross_in_range(t, P, f, cross)) first_refused.record(f);
   });
   if(!first_refused.empty()) throw_refused_face(t, P, first_refused.get());
 }
