@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -103,5 +104,114 @@ TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
   MatrixXd W2 = W;
   lapmesh::internal::thin_subtract_product(V, C, W2);
   EXPECT_LE((W2 - (W - V * C)).cwiseAbs().maxCoeff(), 1e-12);
+}
+#endif
+
+TEST(BlockLanczos, FusedPassesEqualEigenProducts)
+{
+  // The three fused passes of a block step against Eigen's products: every block width (those past
+  // thin_block_max_columns take the products one at a time), heights around the row panels,
+  // slices with outer strides whose neighbouring columns must stay untouched, and the last pass
+  // writing into another slice, as it writes the new block into the basis.
+  using Eigen::Index;
+  using Eigen::MatrixXd;
+  int cases = 0;
+  for(const Index n : {1, 5, 255, 257, 600})
+    for(const Index m : {1, 3, 8, 9, 14})
+      for(Index b = 1; b <= lapmesh::internal::thin_block_max_columns + 2; ++b) {
+        const MatrixXd big_v = MatrixXd::Random(n, m + 3);
+        const auto Va = big_v.middleCols(1, m);
+        const Index local_columns = std::min<Index>(m, 2);
+        const auto Vl = big_v.middleCols(1 + m - local_columns, local_columns);
+        const MatrixXd Cl = MatrixXd::Random(local_columns, b), Cg = MatrixXd::Random(m, b);
+        const double tolerance = 1e-13 * double(n + m);
+        MatrixXd big_w = MatrixXd::Random(n, b + 2);
+        const MatrixXd w_before = big_w;
+        auto W = big_w.middleCols(1, b);
+        const auto untouched = [&](const MatrixXd& now, const MatrixXd& before, Index last) {
+          return now.col(0) == before.col(0) && now.col(last) == before.col(last);
+        };
+
+        MatrixXd product;
+        lapmesh::internal::subtract_then_product_tn(Vl, Cl, W, Va, product);
+        const MatrixXd W1 = w_before.middleCols(1, b) - Vl * Cl;
+        ASSERT_LE((MatrixXd(W) - W1).cwiseAbs().maxCoeff(), tolerance) << n << " " << m << " " << b;
+        ASSERT_EQ(product.rows(), m);
+        ASSERT_EQ(product.cols(), b);
+        ASSERT_LE((product - Va.transpose() * W1).cwiseAbs().maxCoeff(), tolerance) << n << " " << m << " " << b;
+
+        MatrixXd gram;
+        lapmesh::internal::subtract_then_gram(Va, Cg, W, gram);
+        const MatrixXd W2 = W1 - Va * Cg;
+        ASSERT_LE((MatrixXd(W) - W2).cwiseAbs().maxCoeff(), tolerance) << n << " " << m << " " << b;
+        ASSERT_LE((gram - W2.transpose() * W2).cwiseAbs().maxCoeff(), tolerance * W2.squaredNorm())
+          << n << " " << m << " " << b;
+
+        const MatrixXd F = MatrixXd::Random(b, b);
+        lapmesh::internal::multiply_then_gram(W, F, W, &gram);  // in place
+        const MatrixXd W3 = W2 * F;
+        ASSERT_LE((MatrixXd(W) - W3).cwiseAbs().maxCoeff(), tolerance * (1 + W2.cwiseAbs().maxCoeff()));
+        ASSERT_LE((gram - W3.transpose() * W3).cwiseAbs().maxCoeff(), tolerance * (1 + W3.squaredNorm()));
+        EXPECT_TRUE(untouched(big_w, w_before, b + 1));
+
+        MatrixXd big_out = MatrixXd::Random(n, b + 2);
+        const MatrixXd out_before = big_out;
+        lapmesh::internal::multiply_then_gram(W, F, big_out.middleCols(1, b), nullptr);
+        ASSERT_LE((big_out.middleCols(1, b) - W3 * F).cwiseAbs().maxCoeff(),
+                  tolerance * (1 + W3.cwiseAbs().maxCoeff()) * (1 + F.cwiseAbs().maxCoeff()));
+        EXPECT_TRUE(untouched(big_out, out_before, b + 1));
+        ++cases;
+      }
+  EXPECT_EQ(cases, 5 * 5 * int(lapmesh::internal::thin_block_max_columns + 2));
+}
+
+#ifdef LAPMESH_THIN_PRODUCTS
+TEST(BlockLanczos, FusedKernelBuildsEqualEigenProducts)
+{
+  // Both builds of the fused kernel (the baseline and, where the CPU has it, AVX2 + FMA) with every
+  // part of a pass switched on at once: W -= Vl Cl + Va Cg, the product Va^T W, W = W F, the Gram
+  // matrix, the result written to another slice.
+  using Eigen::Index;
+  using Eigen::MatrixXd;
+  namespace k = lapmesh::internal::thin_kernels;
+  std::vector<void (*)(const k::Fused_pass&)> builds = {k::fused_baseline};
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  if(k::use_avx2()) builds.push_back(k::fused_avx2);
+#endif
+  int cases = 0;
+  for(const auto build : builds)
+    for(const Index n : {1, 255, 257, 600})
+      for(const Index m : {1, 7, 9})
+        for(Index b = 1; b <= lapmesh::internal::thin_block_max_columns; ++b) {
+          const Index lanes = b <= 4 ? 4 : 8;
+          const MatrixXd V = MatrixXd::Random(n, m + 1), W = MatrixXd::Random(n, b);
+          const MatrixXd Cl = MatrixXd::Random(1, b), Cg = MatrixXd::Random(m, b);
+          MatrixXd F = MatrixXd::Zero(lanes, lanes);
+          F.topLeftCorner(b, b).setRandom();
+          std::vector<double> local, all, factor;
+          MatrixXd product(m, b), gram(b, b), out = MatrixXd::Zero(n, b);
+          k::Fused_pass p = lapmesh::internal::fused_pass(W);
+          p.Vl = {V.data() + m * n, n};  // the last column
+          p.ml = 1;
+          p.local_coefficients = lapmesh::internal::in_lanes(Cl, lanes, local);
+          p.Va = {V.data(), n};
+          p.ma = m;
+          p.all_coefficients = lapmesh::internal::in_lanes(Cg, lanes, all);
+          p.product = product.data();
+          p.ldp = m;
+          p.factor = lapmesh::internal::in_lanes(F, lanes, factor);
+          p.gram = gram.data();
+          p.out = out.data();
+          p.ldo = n;
+          build(p);
+          const MatrixXd W1 = W - V.rightCols(1) * Cl - V.leftCols(m) * Cg;
+          const MatrixXd W2 = W1 * F.topLeftCorner(b, b);
+          const double tolerance = 1e-13 * double(n + m);
+          ASSERT_LE((product - V.leftCols(m).transpose() * W1).cwiseAbs().maxCoeff(), tolerance * (1 + m));
+          ASSERT_LE((out - W2).cwiseAbs().maxCoeff(), tolerance * (1 + W1.cwiseAbs().maxCoeff()));
+          ASSERT_LE((gram - W2.transpose() * W2).cwiseAbs().maxCoeff(), tolerance * (1 + W2.squaredNorm()));
+          ++cases;
+        }
+  EXPECT_EQ(cases, int(builds.size()) * 4 * 3 * int(lapmesh::internal::thin_block_max_columns));
 }
 #endif

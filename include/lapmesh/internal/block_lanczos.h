@@ -13,7 +13,8 @@
 // against the last two blocks (the three-term recurrence), then once against the whole basis
 // (which removes the round-off drift of the recurrence), and made orthonormal by CholeskyQR2
 // (Householder QR plus random refill when the block is rank deficient, i.e. an invariant
-// subspace was found). The projected matrix T = V^T A V is kept in full; after every block
+// subspace was found). After the first product with the last two blocks, each of these steps
+// shares its pass over the block with the product that follows it (below). The projected matrix T = V^T A V is kept in full; after every block
 // step, Rayleigh-Ritz on T gives Ritz pairs whose residual norms come for free from the
 // coupling to the unprocessed block. When the basis is full, it restarts thickly: the best Ritz
 // vectors plus the unprocessed block form the new basis (no information from converged
@@ -76,6 +77,109 @@ inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, c
   }
 #endif
   tall_gemm(false, -1.0, V, C, 1.0, W);
+}
+
+#ifdef LAPMESH_THIN_PRODUCTS
+/// C (m x b) as m rows of `lanes` values, the lanes past b zero: the layout of the fused kernels.
+inline const double* in_lanes(const Eigen::MatrixXd& C, Eigen::Index lanes, std::vector<double>& out)
+{
+  out.assign(std::size_t(C.rows() * lanes), 0.0);
+  for(Eigen::Index j = 0; j < C.rows(); ++j)
+    for(Eigen::Index c = 0; c < C.cols(); ++c) out[std::size_t(j * lanes + c)] = C(j, c);
+  return out.data();
+}
+
+inline thin_kernels::Fused_pass fused_pass(const Eigen::Ref<const Eigen::MatrixXd>& W)
+{
+  thin_kernels::Fused_pass p{};
+  p.n = W.rows();
+  p.W = {W.data(), W.outerStride()};
+  p.b = W.cols();
+  return p;
+}
+#endif
+
+// The passes of a block step after the operator, fused so that the block is read from memory once
+// per pass over the basis rather than once per product: a subtraction and the product or Gram
+// matrix that follows it, and each multiplication of CholeskyQR2 with the next Gram matrix, share
+// a pass over rows that sit in the first-level cache. Blocks wider than thin_block_max_columns
+// (and compilers without the kernels) take the same steps one product at a time.
+
+/// W -= Vl Cl, then Cg = Va^T W (Vl is usually a part of Va).
+inline void subtract_then_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& Vl, const Eigen::MatrixXd& Cl,
+                                     Eigen::Ref<Eigen::MatrixXd> W, const Eigen::Ref<const Eigen::MatrixXd>& Va,
+                                     Eigen::MatrixXd& Cg)
+{
+#ifdef LAPMESH_THIN_PRODUCTS
+  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && Vl.cols() >= 1 && Va.cols() >= 1) {
+    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    std::vector<double> local;
+    Cg.resize(Va.cols(), W.cols());
+    thin_kernels::Fused_pass p = fused_pass(W);
+    p.Vl = {Vl.data(), Vl.outerStride()};
+    p.ml = Vl.cols();
+    p.local_coefficients = in_lanes(Cl, lanes, local);
+    p.Va = {Va.data(), Va.outerStride()};
+    p.ma = Va.cols();
+    p.product = Cg.data();
+    p.ldp = Cg.outerStride();
+    p.out = W.data();
+    p.ldo = W.outerStride();
+    thin_kernels::kernels().fused(p);
+    return;
+  }
+#endif
+  panel_subtract_product(Vl, Cl, W);
+  panel_product_tn(Va, W, Cg);
+}
+
+/// W -= Va Cg, then G = W^T W.
+inline void subtract_then_gram(const Eigen::Ref<const Eigen::MatrixXd>& Va, const Eigen::MatrixXd& Cg,
+                               Eigen::Ref<Eigen::MatrixXd> W, Eigen::MatrixXd& G)
+{
+#ifdef LAPMESH_THIN_PRODUCTS
+  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && Va.cols() >= 1) {
+    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    std::vector<double> all;
+    G.resize(W.cols(), W.cols());
+    thin_kernels::Fused_pass p = fused_pass(W);
+    p.Va = {Va.data(), Va.outerStride()};
+    p.ma = Va.cols();
+    p.all_coefficients = in_lanes(Cg, lanes, all);
+    p.gram = G.data();
+    p.out = W.data();
+    p.ldo = W.outerStride();
+    thin_kernels::kernels().fused(p);
+    return;
+  }
+#endif
+  panel_subtract_product(Va, Cg, W);
+  panel_product_tn(W, W, G);
+}
+
+/// Out = W F for a small square F (Out may be W), then G = Out^T Out unless G is null.
+inline void multiply_then_gram(const Eigen::Ref<const Eigen::MatrixXd>& W, const Eigen::MatrixXd& F,
+                               Eigen::Ref<Eigen::MatrixXd> Out, Eigen::MatrixXd* G)
+{
+#ifdef LAPMESH_THIN_PRODUCTS
+  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns) {
+    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    std::vector<double> factor;
+    Eigen::MatrixXd square = Eigen::MatrixXd::Zero(lanes, lanes);  // the kernel reads lanes x lanes
+    square.topLeftCorner(F.rows(), F.cols()) = F;
+    if(G) G->resize(W.cols(), W.cols());
+    thin_kernels::Fused_pass p = fused_pass(W);
+    p.factor = in_lanes(square, lanes, factor);
+    p.gram = G ? G->data() : nullptr;
+    p.out = Out.data();
+    p.ldo = Out.outerStride();
+    thin_kernels::kernels().fused(p);
+    return;
+  }
+#endif
+  const Eigen::MatrixXd product = W * F;
+  Out = product;
+  if(G) panel_product_tn(Out, Out, *G);
 }
 
 /// V[:, 0:Z.cols()] = V[:, 0:used] Z, in row panels that stay in cache: a thick restart and
@@ -166,24 +270,30 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   // is the size of W before it was made orthogonal to V: rank is judged against it, because a
   // block that the projections reduced to round-off (the Krylov space became invariant) is noise
   // that is not orthogonal to V, and normalising it would corrupt the basis.
-  MatrixXd G, R2;
-  auto orthonormalise = [&](MatrixXd& W, MatrixXd& R, Index filled, double scale) {
+  //
+  // CholeskyQR2 with W's Gram matrix G given (the pass that made W orthogonal to V computed it):
+  // each of its two passes multiplies W by the inverse of a Cholesky factor, the first one also
+  // forms the next Gram matrix and the second writes the result to `out`.
+  MatrixXd R1, R2, inverse;
+  auto orthonormalise = [&](MatrixXd& W, MatrixXd& G, MatrixXd& R, Index filled, double scale,
+                            Eigen::Ref<MatrixXd> out) {
     scale = std::max(scale, 1e-300);
-    panel_product_tn(W, W, G);
     Eigen::LLT<MatrixXd> llt1(G);
     if(llt1.info() == Eigen::Success) {
-      R = llt1.matrixU();
-      const double dmin = R.diagonal().cwiseAbs().minCoeff();
+      R1 = llt1.matrixU();
+      const double dmin = R1.diagonal().cwiseAbs().minCoeff();
       if(dmin > 1e-7 * scale) {  // condition number < 1e7: CholeskyQR2 is accurate
-        llt1.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
-        panel_product_tn(W, W, G);
+        inverse = R1.triangularView<Eigen::Upper>().solve(MatrixXd::Identity(W.cols(), W.cols()));
+        multiply_then_gram(W, inverse, W, &G);
         Eigen::LLT<MatrixXd> llt2(G);
         if(llt2.info() == Eigen::Success) {
-          llt2.matrixU().template solveInPlace<Eigen::OnTheRight>(W);
           R2 = llt2.matrixU();
-          R = R2 * R;
+          inverse = R2.triangularView<Eigen::Upper>().solve(MatrixXd::Identity(W.cols(), W.cols()));
+          multiply_then_gram(W, inverse, out, nullptr);
+          R = R2 * R1;
           return;
         }
+        W = W * R1;  // undo the first pass: the fallback below factors W itself
       }
     }
     // Rank deficient (an invariant subspace was found) or ill-conditioned: Householder QR, and
@@ -223,18 +333,18 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         if(R_again(j, j) < 0) S.row(j) = -S.row(j);
       R = S * R;
     }
-    W = std::move(Q);
+    out = Q;
   };
 
   Block_lanczos_result out;
   {
-    MatrixXd W(n, b), R;
+    MatrixXd W(n, b), R, G;
     for(Index j = 0; j < b; ++j) random_unit(W.col(j));
-    orthonormalise(W, R, 0, W.colwise().norm().maxCoeff());
-    V.leftCols(b) = W;
+    panel_product_tn(W, W, G);
+    orthonormalise(W, G, R, 0, W.colwise().norm().maxCoeff(), V.leftCols(b));
   }
   Index processed = 0, filled = b, restart_start = 0;
-  MatrixXd W, C, R, Cg, kept, next;
+  MatrixXd W, C, R, Cg, G, kept, next;
   // The convergence checks' schedule (see the top of the file), in operator applications.
   long long next_check = 0, last_check = 0;
   Index last_settled = -1;
@@ -251,15 +361,13 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
       const Index lo = cur == restart_start ? 0 : cur - b;
       const Index local = filled - lo;
       panel_product_tn(V.middleCols(lo, local), W, C);
-      panel_subtract_product(V.middleCols(lo, local), C, W);
-      panel_product_tn(V.leftCols(filled), W, Cg);
-      panel_subtract_product(V.leftCols(filled), Cg, W);
+      subtract_then_product_tn(V.middleCols(lo, local), C, W, V.leftCols(filled), Cg);
+      subtract_then_gram(V.leftCols(filled), Cg, W, G);
       Cg.middleRows(lo, local) += C;
       T.block(0, cur, filled, b) = Cg;
       T.block(cur, 0, b, filled) = Cg.transpose();
       T.block(cur, cur, b, b) = 0.5 * (Cg.middleRows(cur, b) + Cg.middleRows(cur, b).transpose());
-      orthonormalise(W, R, filled, applied_scale);
-      V.middleCols(filled, b) = W;
+      orthonormalise(W, G, R, filled, applied_scale, V.middleCols(filled, b));
       T.block(filled, cur, b, b) = R;
       T.block(cur, filled, b, b) = R.transpose();
       processed += b;

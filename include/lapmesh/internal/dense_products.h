@@ -1,6 +1,7 @@
 // lapmesh — the dense products under the block eigensolver and the supernodal LDL^T: C = alpha
 // op(A) B + beta C on column-major blocks, by the BLAS when lapmesh has one; and the two products
-// of a tall basis with a block of at most 8 columns (V^T W, W - V C) by lapmesh's own kernels.
+// of a tall basis with a block of at most 8 columns (V^T W, W - V C) by lapmesh's own kernels,
+// alone or fused into the passes of a block Lanczos step (block_lanczos.h).
 //
 // Why own kernels for the thin products. They are memory bound: each value of the basis is used
 // for at most 8 multiply-adds. A BLAS first copies the basis into its blocked format (OpenBLAS's
@@ -287,6 +288,160 @@ LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Colum
     product_tn<2>(V, n, m, W, b, C, ldc);
 }
 
+/// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], rows and coefficients of
+/// Lanes = 4 Vecs values each (subtract_columns() is the case of four lanes).
+template <int Vecs, int Cols>
+LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
+                                                double* rows)
+{
+  constexpr int Lanes = 4 * Vecs;
+  const double* v = V.data + j * V.stride + r0;
+  Vec4 k[Cols][Vecs];
+#pragma GCC unroll 8
+  for(int c = 0; c < Cols; ++c)
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) k[c][q] = load4(coefficients + (j + c) * Lanes + 4 * q);
+  for(Index r = 0; r < h; ++r) {
+    Vec4 w[Vecs];
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+#pragma GCC unroll 8
+    for(int c = 0; c < Cols; ++c) {
+      const double s = v[c * V.stride + r];
+#pragma GCC unroll 2
+      for(int q = 0; q < Vecs; ++q) w[q] -= s * k[c][q];
+    }
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, w[q]);
+  }
+}
+
+template <int Vecs>
+struct Subtract_lanes
+{
+  Columns V;
+  Index r0, h;
+  const double* coefficients;
+  double* rows;
+  template <int Cols>
+  LAPMESH_THIN_INLINE void columns(Index j) const
+  {
+    subtract_lanes_columns<Vecs, Cols>(V, j, r0, h, coefficients, rows);
+  }
+};
+
+/// gram (Lanes x Lanes, row c at gram + c Lanes) += rows^T rows over h rows of Lanes values.
+template <int Vecs>
+LAPMESH_THIN_INLINE void accumulate_gram(Index h, const double* rows, double* gram)
+{
+  constexpr int Lanes = 4 * Vecs;
+  Vec4 acc[Lanes][Vecs] = {};
+  for(Index r = 0; r < h; ++r) {
+    Vec4 w[Vecs];
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+#pragma GCC unroll 8
+    for(int c = 0; c < Lanes; ++c) {
+      const double s = rows[r * Lanes + c];
+#pragma GCC unroll 2
+      for(int q = 0; q < Vecs; ++q) acc[c][q] += s * w[q];
+    }
+  }
+#pragma GCC unroll 8
+  for(int c = 0; c < Lanes; ++c)
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) store4(gram + c * Lanes + 4 * q, load4(gram + c * Lanes + 4 * q) + acc[c][q]);
+}
+
+/// rows = rows F over h rows of Lanes values, F Lanes x Lanes (row c at factor + c Lanes).
+template <int Vecs>
+LAPMESH_THIN_INLINE void multiply_rows(Index h, const double* factor, double* rows)
+{
+  constexpr int Lanes = 4 * Vecs;
+  Vec4 f[Lanes][Vecs];
+#pragma GCC unroll 8
+  for(int c = 0; c < Lanes; ++c)
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) f[c][q] = load4(factor + c * Lanes + 4 * q);
+  for(Index r = 0; r < h; ++r) {
+    Vec4 y[Vecs] = {};
+#pragma GCC unroll 8
+    for(int c = 0; c < Lanes; ++c) {
+      const double s = rows[r * Lanes + c];
+#pragma GCC unroll 2
+      for(int q = 0; q < Vecs; ++q) y[q] += s * f[c][q];
+    }
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, y[q]);
+  }
+}
+
+/// The passes of one block Lanczos step after the local coefficients are known, each reading the
+/// basis and the block once, in row panels (see Fused_step):
+///   subtract_then_product: W -= Vl Cl, then Cg = Va^T W;
+///   subtract_then_gram:    W -= Va Cg, then G = W^T W;
+///   multiply_then_gram:    Out = W F, then G = Out^T Out (Out may be W);
+/// a null `gram` skips the Gram matrix, a zero `ml` the first subtraction.
+template <int Vecs>
+LAPMESH_THIN_INLINE void fused_panels(Index n, Columns Vl, Index ml, const double* local_coefficients, Columns Va,
+                                      Index ma, const double* all_coefficients, bool subtract_all, Columns W, Index b,
+                                      double* product, Index ldp, const double* factor, double* gram, double* Out,
+                                      Index ldo)
+{
+  constexpr int Lanes = 4 * Vecs;
+  std::vector<double> sums(std::size_t(product ? ma * Lanes : 0), 0.0);
+  alignas(32) double rows[panel_rows * Lanes] = {};
+  alignas(32) double gram_lanes[Lanes * Lanes] = {};
+  for(Index r0 = 0; r0 < n; r0 += panel_rows) {
+    const Index h = std::min(panel_rows, n - r0);
+    gather_rows<Lanes>(W, b, r0, h, rows);
+    if(ml > 0) over_column_groups<8 / Vecs>(ml, Subtract_lanes<Vecs>{Vl, r0, h, local_coefficients, rows});
+    if(subtract_all) over_column_groups<8 / Vecs>(ma, Subtract_lanes<Vecs>{Va, r0, h, all_coefficients, rows});
+    if(product) over_column_groups<8 / Vecs>(ma, Accumulate_tn<Vecs>{Va, r0, h, rows, sums.data()});
+    if(factor) multiply_rows<Vecs>(h, factor, rows);
+    if(gram) accumulate_gram<Vecs>(h, rows, gram_lanes);
+    scatter_rows<Lanes>(rows, b, r0, h, Out, ldo);
+  }
+  if(product)
+    for(Index c = 0; c < b; ++c)
+      for(Index j = 0; j < ma; ++j) product[c * ldp + j] = sums[std::size_t(j * Lanes + c)];
+  if(gram)
+    for(Index c = 0; c < b; ++c)
+      for(Index j = 0; j < b; ++j) gram[c * b + j] = gram_lanes[j * Lanes + c];
+}
+
+/// The arguments of fused_panels(), gathered so that the two builds share one signature.
+struct Fused_pass
+{
+  Index n;
+  Columns Vl;
+  Index ml;
+  const double* local_coefficients;  ///< ml rows of Lanes values
+  Columns Va;
+  Index ma;
+  const double* all_coefficients;    ///< ma rows of Lanes values, or null: no second subtraction
+  Columns W;
+  Index b;
+  double* product;  ///< ma x b, leading dimension ldp, or null
+  Index ldp;
+  const double* factor;  ///< Lanes x Lanes, or null
+  double* gram;          ///< b x b, or null
+  double* out;           ///< where the block goes (may be W's data)
+  Index ldo;
+};
+
+LAPMESH_THIN_INLINE void fused_any_width(const Fused_pass& p)
+{
+  if(p.b <= 4)
+    fused_panels<1>(p.n, p.Vl, p.ml, p.local_coefficients, p.Va, p.ma, p.all_coefficients, p.all_coefficients != nullptr,
+                    p.W, p.b, p.product, p.ldp, p.factor, p.gram, p.out, p.ldo);
+  else
+    fused_panels<2>(p.n, p.Vl, p.ml, p.local_coefficients, p.Va, p.ma, p.all_coefficients, p.all_coefficients != nullptr,
+                    p.W, p.b, p.product, p.ldp, p.factor, p.gram, p.out, p.ldo);
+}
+
+inline void fused_baseline(const Fused_pass& p) { fused_any_width(p); }
+
 inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
   product_tn_any_width(V, n, m, W, b, C, ldc);
@@ -301,6 +456,7 @@ __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index
 {
   product_tn_any_width(V, n, m, W, b, C, ldc);
 }
+__attribute__((target("avx2,fma"))) inline void fused_avx2(const Fused_pass& p) { fused_any_width(p); }
 __attribute__((target("avx2,fma"))) inline void subtract_avx2(Columns V, Index n, Index m, Columns C, double* W,
                                                                Index ldw, Index b)
 {
@@ -323,14 +479,16 @@ struct Kernels
 {
   void (*product_tn)(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc);
   void (*subtract)(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b);
+  void (*fused)(const Fused_pass& pass);
 };
 inline const Kernels& kernels()
 {
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
   static const Kernels chosen =
-    use_avx2() ? Kernels{&product_tn_avx2, &subtract_avx2} : Kernels{&product_tn_baseline, &subtract_baseline};
+    use_avx2() ? Kernels{&product_tn_avx2, &subtract_avx2, &fused_avx2}
+               : Kernels{&product_tn_baseline, &subtract_baseline, &fused_baseline};
 #else
-  static const Kernels chosen{&product_tn_baseline, &subtract_baseline};
+  static const Kernels chosen{&product_tn_baseline, &subtract_baseline, &fused_baseline};
 #endif
   return chosen;
 }
