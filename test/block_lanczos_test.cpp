@@ -183,14 +183,14 @@ TEST(BlockLanczos, FusedKernelBuildsEqualEigenProducts)
     for(const Index n : {1, 255, 257, 600})
       for(const Index m : {1, 7, 9})
         for(Index b = 1; b <= lapmesh::internal::thin_block_max_columns; ++b) {
-          const Index lanes = b <= 4 ? 4 : 8;
           const MatrixXd V = MatrixXd::Random(n, m + 1), W = MatrixXd::Random(n, b);
+          MatrixXd product(m, b), gram(b, b), out = MatrixXd::Zero(n, b);
+          Index lanes;
+          k::Fused_pass p = lapmesh::internal::fused_pass(W, out.data(), n, lanes);
           const MatrixXd Cl = MatrixXd::Random(1, b), Cg = MatrixXd::Random(m, b);
           MatrixXd F = MatrixXd::Zero(lanes, lanes);
           F.topLeftCorner(b, b).setRandom();
           std::vector<double> local, all, factor;
-          MatrixXd product(m, b), gram(b, b), out = MatrixXd::Zero(n, b);
-          k::Fused_pass p = lapmesh::internal::fused_pass(W);
           p.Vl = {V.data() + m * n, n};  // the last column
           p.ml = 1;
           p.local_coefficients = lapmesh::internal::in_lanes(Cl, lanes, local);
@@ -201,8 +201,6 @@ TEST(BlockLanczos, FusedKernelBuildsEqualEigenProducts)
           p.ldp = m;
           p.factor = lapmesh::internal::in_lanes(F, lanes, factor);
           p.gram = gram.data();
-          p.out = out.data();
-          p.ldo = n;
           build(p);
           const MatrixXd W1 = W - V.rightCols(1) * Cl - V.leftCols(m) * Cg;
           const MatrixXd W2 = W1 * F.topLeftCorner(b, b);

@@ -89,12 +89,18 @@ inline const double* in_lanes(const Eigen::MatrixXd& C, Eigen::Index lanes, std:
   return out.data();
 }
 
-inline thin_kernels::Fused_pass fused_pass(const Eigen::Ref<const Eigen::MatrixXd>& W)
+/// A fused pass that reads the block W and writes it to `out` (which may be W), with nothing else
+/// to do yet; `lanes` is the kernel's width for W.
+inline thin_kernels::Fused_pass fused_pass(const Eigen::Ref<const Eigen::MatrixXd>& W, double* out, Eigen::Index ldo,
+                                           Eigen::Index& lanes)
 {
   thin_kernels::Fused_pass p{};
   p.n = W.rows();
   p.W = {W.data(), W.outerStride()};
   p.b = W.cols();
+  p.out = out;
+  p.ldo = ldo;
+  lanes = W.cols() <= 4 ? 4 : 8;
   return p;
 }
 #endif
@@ -112,10 +118,10 @@ inline void subtract_then_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& Vl
 {
 #ifdef LAPMESH_THIN_PRODUCTS
   if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && Vl.cols() >= 1 && Va.cols() >= 1) {
-    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    Eigen::Index lanes;
     std::vector<double> local;
     Cg.resize(Va.cols(), W.cols());
-    thin_kernels::Fused_pass p = fused_pass(W);
+    thin_kernels::Fused_pass p = fused_pass(W, W.data(), W.outerStride(), lanes);
     p.Vl = {Vl.data(), Vl.outerStride()};
     p.ml = Vl.cols();
     p.local_coefficients = in_lanes(Cl, lanes, local);
@@ -123,8 +129,6 @@ inline void subtract_then_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& Vl
     p.ma = Va.cols();
     p.product = Cg.data();
     p.ldp = Cg.outerStride();
-    p.out = W.data();
-    p.ldo = W.outerStride();
     thin_kernels::kernels().fused(p);
     return;
   }
@@ -139,16 +143,14 @@ inline void subtract_then_gram(const Eigen::Ref<const Eigen::MatrixXd>& Va, cons
 {
 #ifdef LAPMESH_THIN_PRODUCTS
   if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && Va.cols() >= 1) {
-    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    Eigen::Index lanes;
     std::vector<double> all;
     G.resize(W.cols(), W.cols());
-    thin_kernels::Fused_pass p = fused_pass(W);
+    thin_kernels::Fused_pass p = fused_pass(W, W.data(), W.outerStride(), lanes);
     p.Va = {Va.data(), Va.outerStride()};
     p.ma = Va.cols();
     p.all_coefficients = in_lanes(Cg, lanes, all);
     p.gram = G.data();
-    p.out = W.data();
-    p.ldo = W.outerStride();
     thin_kernels::kernels().fused(p);
     return;
   }
@@ -163,16 +165,14 @@ inline void multiply_then_gram(const Eigen::Ref<const Eigen::MatrixXd>& W, const
 {
 #ifdef LAPMESH_THIN_PRODUCTS
   if(W.cols() >= 1 && W.cols() <= thin_block_max_columns) {
-    const Eigen::Index lanes = W.cols() <= 4 ? 4 : 8;
+    Eigen::Index lanes;
     std::vector<double> factor;
+    if(G) G->resize(W.cols(), W.cols());
+    thin_kernels::Fused_pass p = fused_pass(W, Out.data(), Out.outerStride(), lanes);
     Eigen::MatrixXd square = Eigen::MatrixXd::Zero(lanes, lanes);  // the kernel reads lanes x lanes
     square.topLeftCorner(F.rows(), F.cols()) = F;
-    if(G) G->resize(W.cols(), W.cols());
-    thin_kernels::Fused_pass p = fused_pass(W);
     p.factor = in_lanes(square, lanes, factor);
     p.gram = G ? G->data() : nullptr;
-    p.out = Out.data();
-    p.ldo = Out.outerStride();
     thin_kernels::kernels().fused(p);
     return;
   }

@@ -176,20 +176,31 @@ LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Ind
     }
 }
 
-/// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], the rows and the
-/// coefficients 4 values each.
-template <int Cols>
-LAPMESH_THIN_INLINE void subtract_columns(Columns V, Index j, Index r0, Index h, const double* coefficients, double* rows)
+/// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], rows and coefficients of
+/// Lanes = 4 Vecs values each.
+template <int Vecs, int Cols>
+LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
+                                                double* rows)
 {
+  constexpr int Lanes = 4 * Vecs;
   const double* v = V.data + j * V.stride + r0;
-  Vec4 k[Cols];
+  Vec4 k[Cols][Vecs];
 #pragma GCC unroll 8
-  for(int c = 0; c < Cols; ++c) k[c] = load4(coefficients + (j + c) * 4);
+  for(int c = 0; c < Cols; ++c)
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) k[c][q] = load4(coefficients + (j + c) * Lanes + 4 * q);
   for(Index r = 0; r < h; ++r) {
-    Vec4 w = load4(rows + r * 4);
+    Vec4 w[Vecs];
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
 #pragma GCC unroll 8
-    for(int c = 0; c < Cols; ++c) w -= v[c * V.stride + r] * k[c];
-    store4(rows + r * 4, w);
+    for(int c = 0; c < Cols; ++c) {
+      const double s = v[c * V.stride + r];
+#pragma GCC unroll 2
+      for(int q = 0; q < Vecs; ++q) w[q] -= s * k[c][q];
+    }
+#pragma GCC unroll 2
+    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, w[q]);
   }
 }
 
@@ -211,7 +222,7 @@ LAPMESH_THIN_INLINE void over_column_groups(Index m, const Step& step)
   if(j < m) step.template columns<1>(j);
 }
 
-// The two panel steps as objects (not lambdas, which would not be compiled for the caller's target).
+// The panel steps as objects (not lambdas, which would not be compiled for the caller's target).
 template <int Vecs>
 struct Accumulate_tn
 {
@@ -225,7 +236,9 @@ struct Accumulate_tn
     accumulate_tn_columns<Vecs, Cols>(V, j, r0, h, rows, sums);
   }
 };
-struct Subtract
+
+template <int Vecs>
+struct Subtract_lanes
 {
   Columns V;
   Index r0, h;
@@ -234,7 +247,7 @@ struct Subtract
   template <int Cols>
   LAPMESH_THIN_INLINE void columns(Index j) const
   {
-    subtract_columns<Cols>(V, j, r0, h, coefficients, rows);
+    subtract_lanes_columns<Vecs, Cols>(V, j, r0, h, coefficients, rows);
   }
 };
 
@@ -273,7 +286,7 @@ LAPMESH_THIN_INLINE void subtract(Columns V, Index n, Index m, Columns C, double
       const Index width = std::min<Index>(4, b - 4 * q);
       double* w = W + 4 * q * ldw;
       gather_rows<4>(Columns{w, ldw}, width, r0, h, rows);
-      over_column_groups<8>(m, Subtract{V, r0, h, coefficients.data() + q * m * 4, rows});
+      over_column_groups<8>(m, Subtract_lanes<1>{V, r0, h, coefficients.data() + q * m * 4, rows});
       scatter_rows<4>(rows, width, r0, h, w, ldw);
     }
   }
@@ -287,48 +300,6 @@ LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Colum
   else
     product_tn<2>(V, n, m, W, b, C, ldc);
 }
-
-/// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], rows and coefficients of
-/// Lanes = 4 Vecs values each (subtract_columns() is the case of four lanes).
-template <int Vecs, int Cols>
-LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
-                                                double* rows)
-{
-  constexpr int Lanes = 4 * Vecs;
-  const double* v = V.data + j * V.stride + r0;
-  Vec4 k[Cols][Vecs];
-#pragma GCC unroll 8
-  for(int c = 0; c < Cols; ++c)
-#pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) k[c][q] = load4(coefficients + (j + c) * Lanes + 4 * q);
-  for(Index r = 0; r < h; ++r) {
-    Vec4 w[Vecs];
-#pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
-#pragma GCC unroll 8
-    for(int c = 0; c < Cols; ++c) {
-      const double s = v[c * V.stride + r];
-#pragma GCC unroll 2
-      for(int q = 0; q < Vecs; ++q) w[q] -= s * k[c][q];
-    }
-#pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, w[q]);
-  }
-}
-
-template <int Vecs>
-struct Subtract_lanes
-{
-  Columns V;
-  Index r0, h;
-  const double* coefficients;
-  double* rows;
-  template <int Cols>
-  LAPMESH_THIN_INLINE void columns(Index j) const
-  {
-    subtract_lanes_columns<Vecs, Cols>(V, j, r0, h, coefficients, rows);
-  }
-};
 
 /// gram (Lanes x Lanes, row c at gram + c Lanes) += rows^T rows over h rows of Lanes values.
 template <int Vecs>
