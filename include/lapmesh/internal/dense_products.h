@@ -347,41 +347,7 @@ LAPMESH_THIN_INLINE void multiply_rows(Index h, const double* factor, double* ro
   }
 }
 
-/// The passes of one block Lanczos step after the local coefficients are known, each reading the
-/// basis and the block once, in row panels (see Fused_step):
-///   subtract_then_product: W -= Vl Cl, then Cg = Va^T W;
-///   subtract_then_gram:    W -= Va Cg, then G = W^T W;
-///   multiply_then_gram:    Out = W F, then G = Out^T Out (Out may be W);
-/// a null `gram` skips the Gram matrix, a zero `ml` the first subtraction.
-template <int Vecs>
-LAPMESH_THIN_INLINE void fused_panels(Index n, Columns Vl, Index ml, const double* local_coefficients, Columns Va,
-                                      Index ma, const double* all_coefficients, bool subtract_all, Columns W, Index b,
-                                      double* product, Index ldp, const double* factor, double* gram, double* Out,
-                                      Index ldo)
-{
-  constexpr int Lanes = 4 * Vecs;
-  std::vector<double> sums(std::size_t(product ? ma * Lanes : 0), 0.0);
-  alignas(32) double rows[panel_rows * Lanes] = {};
-  alignas(32) double gram_lanes[Lanes * Lanes] = {};
-  for(Index r0 = 0; r0 < n; r0 += panel_rows) {
-    const Index h = std::min(panel_rows, n - r0);
-    gather_rows<Lanes>(W, b, r0, h, rows);
-    if(ml > 0) over_column_groups<8 / Vecs>(ml, Subtract_lanes<Vecs>{Vl, r0, h, local_coefficients, rows});
-    if(subtract_all) over_column_groups<8 / Vecs>(ma, Subtract_lanes<Vecs>{Va, r0, h, all_coefficients, rows});
-    if(product) over_column_groups<8 / Vecs>(ma, Accumulate_tn<Vecs>{Va, r0, h, rows, sums.data()});
-    if(factor) multiply_rows<Vecs>(h, factor, rows);
-    if(gram) accumulate_gram<Vecs>(h, rows, gram_lanes);
-    scatter_rows<Lanes>(rows, b, r0, h, Out, ldo);
-  }
-  if(product)
-    for(Index c = 0; c < b; ++c)
-      for(Index j = 0; j < ma; ++j) product[c * ldp + j] = sums[std::size_t(j * Lanes + c)];
-  if(gram)
-    for(Index c = 0; c < b; ++c)
-      for(Index j = 0; j < b; ++j) gram[c * b + j] = gram_lanes[j * Lanes + c];
-}
-
-/// The arguments of fused_panels(), gathered so that the two builds share one signature.
+/// One fused pass over the block W (see fused_panels()): what it subtracts, computes and writes.
 struct Fused_pass
 {
   Index n;
@@ -401,14 +367,45 @@ struct Fused_pass
   Index ldo;
 };
 
+/// One pass of a block Lanczos step over the block, reading the basis and the block once, in row
+/// panels; its entry points in block_lanczos.h use it as
+///   subtract_then_product_tn(): W -= Vl Cl, then Cg = Va^T W;
+///   subtract_then_gram():       W -= Va Cg, then G = W^T W;
+///   multiply_then_gram():       Out = W F, then G = Out^T Out (Out may be W).
+/// A null pointer skips its part, a zero `ml` the first subtraction.
+template <int Vecs>
+LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
+{
+  constexpr int Lanes = 4 * Vecs;
+  std::vector<double> sums(std::size_t(p.product ? p.ma * Lanes : 0), 0.0);
+  alignas(32) double rows[panel_rows * Lanes] = {};
+  alignas(32) double gram_lanes[Lanes * Lanes] = {};
+  for(Index r0 = 0; r0 < p.n; r0 += panel_rows) {
+    const Index h = std::min(panel_rows, p.n - r0);
+    gather_rows<Lanes>(p.W, p.b, r0, h, rows);
+    if(p.ml > 0)
+      over_column_groups<8 / Vecs>(p.ml, Subtract_lanes<Vecs>{p.Vl, r0, h, p.local_coefficients, rows});
+    if(p.all_coefficients)
+      over_column_groups<8 / Vecs>(p.ma, Subtract_lanes<Vecs>{p.Va, r0, h, p.all_coefficients, rows});
+    if(p.product) over_column_groups<8 / Vecs>(p.ma, Accumulate_tn<Vecs>{p.Va, r0, h, rows, sums.data()});
+    if(p.factor) multiply_rows<Vecs>(h, p.factor, rows);
+    if(p.gram) accumulate_gram<Vecs>(h, rows, gram_lanes);
+    scatter_rows<Lanes>(rows, p.b, r0, h, p.out, p.ldo);
+  }
+  if(p.product)
+    for(Index c = 0; c < p.b; ++c)
+      for(Index j = 0; j < p.ma; ++j) p.product[c * p.ldp + j] = sums[std::size_t(j * Lanes + c)];
+  if(p.gram)
+    for(Index c = 0; c < p.b; ++c)
+      for(Index j = 0; j < p.b; ++j) p.gram[c * p.b + j] = gram_lanes[j * Lanes + c];
+}
+
 LAPMESH_THIN_INLINE void fused_any_width(const Fused_pass& p)
 {
   if(p.b <= 4)
-    fused_panels<1>(p.n, p.Vl, p.ml, p.local_coefficients, p.Va, p.ma, p.all_coefficients, p.all_coefficients != nullptr,
-                    p.W, p.b, p.product, p.ldp, p.factor, p.gram, p.out, p.ldo);
+    fused_panels<1>(p);
   else
-    fused_panels<2>(p.n, p.Vl, p.ml, p.local_coefficients, p.Va, p.ma, p.all_coefficients, p.all_coefficients != nullptr,
-                    p.W, p.b, p.product, p.ldp, p.factor, p.gram, p.out, p.ldo);
+    fused_panels<2>(p);
 }
 
 inline void fused_baseline(const Fused_pass& p) { fused_any_width(p); }
