@@ -53,18 +53,19 @@ TEST(BlockLanczos, EigenFallbackProductsAndEigenpairs)
 #ifdef LAPMESH_THIN_PRODUCTS  // GCC and Clang
 TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
 {
-  // lapmesh's kernels for V^T W and W - V C with W of 1 to 8 columns, in both builds (the
-  // baseline and, where the CPU has it, AVX2 + FMA): every width, column counts that leave every
-  // remainder of the groups of 8, 4, 2 and 1 columns, heights around the row panels (128 and 256
-  // rows), and slices with outer strides whose neighbouring columns must stay untouched.
+  // lapmesh's kernels for V^T W and (as a fused pass with only its subtraction) W - V C with W of 1
+  // to 8 columns, in both builds (the baseline and, where the CPU has it, AVX2 + FMA): every
+  // width, column counts that leave every remainder of the groups of 8, 4, 2 and 1 columns,
+  // heights around the row panels (256 rows), and slices with outer strides whose neighbouring
+  // columns must stay untouched.
   using Eigen::Index;
   using Eigen::MatrixXd;
   namespace k = lapmesh::internal::thin_kernels;
   using Product = void (*)(k::Columns, Index, Index, k::Columns, Index, double*, Index);
-  using Subtract = void (*)(k::Columns, Index, Index, k::Columns, double*, Index, Index);
-  std::vector<std::pair<Product, Subtract>> builds = {{k::product_tn_baseline, k::subtract_baseline}};
+  using Fused = void (*)(const k::Fused_pass&);
+  std::vector<std::pair<Product, Fused>> builds = {{k::product_tn_baseline, k::fused_baseline}};
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
-  if(k::use_avx2()) builds.emplace_back(k::product_tn_avx2, k::subtract_avx2);
+  if(k::use_avx2()) builds.emplace_back(k::product_tn_avx2, k::fused_avx2);
 #endif
   int cases = 0;
   for(const auto& build : builds)
@@ -84,8 +85,13 @@ TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
           ASSERT_LE((C.topRows(m) - C_ref).cwiseAbs().maxCoeff(), tolerance) << n << " " << m << " " << b;
           EXPECT_TRUE(C.row(m).hasNaN());  // past the leading dimension's m rows: not written
 
-          build.second(k::Columns{V.data(), V.outerStride()}, n, m, k::Columns{C_ref.data(), C_ref.outerStride()},
-                       big_w.data() + n, n, b);
+          Index lanes;
+          std::vector<double> coefficients;
+          k::Fused_pass subtract = lapmesh::internal::fused_pass(big_w.middleCols(1, b), big_w.data() + n, n, lanes);
+          subtract.Va = {V.data(), V.outerStride()};
+          subtract.ma = m;
+          subtract.all_coefficients = lapmesh::internal::in_lanes(C_ref, lanes, coefficients);
+          build.second(subtract);
           const MatrixXd W_ref = w_before.middleCols(1, b) - V * C_ref;
           ASSERT_LE((big_w.middleCols(1, b) - W_ref).cwiseAbs().maxCoeff(), tolerance) << n << " " << m << " " << b;
           EXPECT_TRUE(big_w.col(0) == w_before.col(0));
@@ -94,16 +100,13 @@ TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
         }
   EXPECT_EQ(cases, int(builds.size()) * 7 * 10 * 8);
 
-  // The entry points that the block Lanczos calls, on Eigen blocks.
+  // The entry point that the block Lanczos calls, on Eigen blocks.
   const MatrixXd V = MatrixXd::Random(1000, 37), W = MatrixXd::Random(1000, 6);
   MatrixXd C;
   lapmesh::internal::thin_product_tn(V, W, C);
   ASSERT_EQ(C.rows(), 37);
   ASSERT_EQ(C.cols(), 6);
   EXPECT_LE((C - V.transpose() * W).cwiseAbs().maxCoeff(), 1e-12);
-  MatrixXd W2 = W;
-  lapmesh::internal::thin_subtract_product(V, C, W2);
-  EXPECT_LE((W2 - (W - V * C)).cwiseAbs().maxCoeff(), 1e-12);
 }
 #endif
 

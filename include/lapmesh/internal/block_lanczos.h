@@ -66,16 +66,11 @@ inline void panel_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const E
   tall_gemm(true, 1.0, V, W, 0.0, C);
 }
 
-/// W -= V C, as panel_product_tn() chooses.
+/// W -= V C by the BLAS (or Eigen) in row panels. The block steps subtract blocks of up to
+/// thin_block_max_columns in their fused passes (below); this is their fallback.
 inline void panel_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::MatrixXd& C,
                                    Eigen::Ref<Eigen::MatrixXd> W)
 {
-#ifdef LAPMESH_THIN_PRODUCTS
-  if(W.cols() >= 1 && W.cols() <= thin_block_max_columns && V.cols() >= 1) {
-    thin_subtract_product(V, C, W);
-    return;
-  }
-#endif
   tall_gemm(false, -1.0, V, C, 1.0, W);
 }
 

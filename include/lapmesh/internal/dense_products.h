@@ -1,7 +1,7 @@
 // lapmesh — the dense products under the block eigensolver and the supernodal LDL^T: C = alpha
-// op(A) B + beta C on column-major blocks, by the BLAS when lapmesh has one; and the two products
-// of a tall basis with a block of at most 8 columns (V^T W, W - V C) by lapmesh's own kernels,
-// alone or fused into the passes of a block Lanczos step (block_lanczos.h).
+// op(A) B + beta C on column-major blocks, by the BLAS when lapmesh has one; and the products of a
+// tall basis with a block of at most 8 columns by lapmesh's own kernels: V^T W alone, and the
+// passes of a block Lanczos step (block_lanczos.h) that fuse W - V C with V^T W or W^T W.
 //
 // Why own kernels for the thin products. They are memory bound: each value of the basis is used
 // for at most 8 multiply-adds. A BLAS first copies the basis into its blocked format (OpenBLAS's
@@ -267,31 +267,6 @@ LAPMESH_THIN_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Inde
     for(Index j = 0; j < m; ++j) C[c * ldc + j] = sums[std::size_t(j * Lanes + c)];
 }
 
-/// W (n x b, leading dimension ldw) -= V[:, 0:m] C, C m x b, 1 <= b <= 8. Four columns of W at a
-/// time (eight would not leave registers for the coefficients of eight columns of V); a panel of
-/// V is read from memory for the first four and from the second-level cache for the others.
-LAPMESH_THIN_INLINE void subtract(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b)
-{
-  const Index quads = (b + 3) / 4;
-  // Two quads read each panel of V twice: 128 rows of a basis of a few hundred columns stay in
-  // the second-level cache between the two.
-  const Index rows_per_panel = quads == 1 ? 256 : 128;
-  std::vector<double> coefficients(std::size_t(quads * m * 4), 0.0);  // quad q: m rows of 4 values
-  for(Index c = 0; c < b; ++c)
-    for(Index j = 0; j < m; ++j) coefficients[std::size_t((c / 4 * m + j) * 4 + c % 4)] = C.data[c * C.stride + j];
-  alignas(32) double rows[256 * 4] = {};
-  for(Index r0 = 0; r0 < n; r0 += rows_per_panel) {
-    const Index h = std::min(rows_per_panel, n - r0);
-    for(Index q = 0; q < quads; ++q) {
-      const Index width = std::min<Index>(4, b - 4 * q);
-      double* w = W + 4 * q * ldw;
-      gather_rows<4>(Columns{w, ldw}, width, r0, h, rows);
-      over_column_groups<8>(m, Subtract_lanes<1>{V, r0, h, coefficients.data() + q * m * 4, rows});
-      scatter_rows<4>(rows, width, r0, h, w, ldw);
-    }
-  }
-}
-
 /// product_tn() for a block of b columns: four lanes up to 4, eight beyond.
 LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
@@ -414,10 +389,6 @@ inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b,
 {
   product_tn_any_width(V, n, m, W, b, C, ldc);
 }
-inline void subtract_baseline(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b)
-{
-  subtract(V, n, m, C, W, ldw, b);
-}
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
 __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index n, Index m, Columns W, Index b,
                                                                  double* C, Index ldc)
@@ -425,11 +396,6 @@ __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index
   product_tn_any_width(V, n, m, W, b, C, ldc);
 }
 __attribute__((target("avx2,fma"))) inline void fused_avx2(const Fused_pass& p) { fused_any_width(p); }
-__attribute__((target("avx2,fma"))) inline void subtract_avx2(Columns V, Index n, Index m, Columns C, double* W,
-                                                               Index ldw, Index b)
-{
-  subtract(V, n, m, C, W, ldw, b);
-}
 #endif
 
 /// Whether the kernels are compiled for AVX2 + FMA and the CPU has both.
@@ -442,28 +408,26 @@ inline bool use_avx2()
 #endif
 }
 
-/// The build of both kernels that this CPU runs, chosen once.
+/// The build of the kernels that this CPU runs, chosen once.
 struct Kernels
 {
   void (*product_tn)(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc);
-  void (*subtract)(Columns V, Index n, Index m, Columns C, double* W, Index ldw, Index b);
   void (*fused)(const Fused_pass& pass);
 };
 inline const Kernels& kernels()
 {
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
   static const Kernels chosen =
-    use_avx2() ? Kernels{&product_tn_avx2, &subtract_avx2, &fused_avx2}
-               : Kernels{&product_tn_baseline, &subtract_baseline, &fused_baseline};
+    use_avx2() ? Kernels{&product_tn_avx2, &fused_avx2} : Kernels{&product_tn_baseline, &fused_baseline};
 #else
-  static const Kernels chosen{&product_tn_baseline, &subtract_baseline, &fused_baseline};
+  static const Kernels chosen{&product_tn_baseline, &fused_baseline};
 #endif
   return chosen;
 }
 
 } // namespace thin_kernels
 
-/// The widest block that thin_product_tn() and thin_subtract_product() take.
+/// The widest block that thin_product_tn() and the fused passes take.
 constexpr Eigen::Index thin_block_max_columns = 8;
 
 /// C = V^T W for a tall V (any outer stride) and a W of 1 to 8 columns (thin_block_max_columns).
@@ -474,16 +438,6 @@ inline void thin_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Ei
   C.resize(V.cols(), W.cols());
   thin_kernels::kernels().product_tn({V.data(), V.outerStride()}, V.rows(), V.cols(), {W.data(), W.outerStride()},
                                      W.cols(), C.data(), C.outerStride());
-}
-
-/// W -= V C for a tall V (any outer stride) and a W of 1 to 8 columns (thin_block_max_columns).
-inline void thin_subtract_product(const Eigen::Ref<const Eigen::MatrixXd>& V, const Eigen::Ref<const Eigen::MatrixXd>& C,
-                                  Eigen::Ref<Eigen::MatrixXd> W)
-{
-  assert(V.rows() == W.rows() && V.cols() == C.rows() && C.cols() == W.cols() && W.cols() >= 1 &&
-         W.cols() <= thin_block_max_columns);
-  thin_kernels::kernels().subtract({V.data(), V.outerStride()}, V.rows(), V.cols(), {C.data(), C.outerStride()},
-                                   W.data(), W.outerStride(), W.cols());
 }
 #endif
 
