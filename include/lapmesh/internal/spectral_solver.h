@@ -48,6 +48,7 @@
 #include <Eigen/SparseCore>
 #include <lapmesh/internal/cholmod.h>
 #include <lapmesh/internal/supernodal_ldlt.h>
+#include <lapmesh/internal/union_find.h>
 
 #include <Spectra/SymEigsShiftSolver.h>
 
@@ -113,32 +114,20 @@ public:
                        Eigen::Index min_components = 2)
   {
     const Eigen::Index n = stiffness.rows();
-    std::vector<Eigen::Index> parent(static_cast<std::size_t>(n));
-    std::iota(parent.begin(), parent.end(), Eigen::Index(0));
-    auto root = [&](Eigen::Index v) {
-      while(parent[std::size_t(v)] != v) v = parent[std::size_t(v)] = parent[std::size_t(parent[std::size_t(v)])];
-      return v;
-    };
+    Smallest_root_sets<Eigen::Index> components(n);
     for(Eigen::Index j = 0; j < stiffness.outerSize(); ++j) {
       double row_sum = 0, row_abs = 0;  // S is symmetric: column j is row j
       for(Eigen::SparseMatrix<double>::InnerIterator it(stiffness, j); it; ++it) {
         row_sum += it.value();
         row_abs += std::abs(it.value());
-        if(it.value() != 0 && it.index() != j) {
-          const Eigen::Index a = root(it.index()), b = root(j);
-          if(a != b) parent[std::size_t(std::max(a, b))] = std::min(a, b);
-        }
+        if(it.value() != 0 && it.index() != j) components.join(it.index(), j);
       }
       if(!(std::abs(row_sum) <= 1e-10 * row_abs)) return;  // not a Laplacian: no known null space
     }
-    m_component.resize(n);
     Eigen::Index c = 0;
-    std::vector<Eigen::Index> label(static_cast<std::size_t>(n), -1);
-    for(Eigen::Index v = 0; v < n; ++v) {  // numbered by their first vertex
-      Eigen::Index& l = label[std::size_t(root(v))];
-      if(l < 0) l = c++;
-      m_component[v] = int(l);
-    }
+    const std::vector<Eigen::Index> label = components.labels(c);
+    m_component.resize(n);
+    for(Eigen::Index v = 0; v < n; ++v) m_component[v] = int(label[std::size_t(v)]);
     if(c < std::max<Eigen::Index>(min_components, 1)) {
       m_component.resize(0);
       return;

@@ -16,6 +16,7 @@
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/row_sort.h>
+#include <lapmesh/internal/union_find.h>
 
 #include <algorithm>
 #include <array>
@@ -803,24 +804,11 @@ inline void require_manifold(const Mesh_topology& t, const char* operator_name)
 /// its own. `count`, if given, receives the number of components.
 inline std::vector<Index> connected_component_labels(const Mesh_topology& t, Index* count = nullptr)
 {
-  std::vector<Index> parent(t.num_vertices);
-  for(Index v = 0; v < t.num_vertices; ++v) parent[v] = v;
-  auto find = [&](Index v) {
-    while(parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-  };
+  Smallest_root_sets<Index> sets(t.num_vertices);
   for(Index f = 0; f < t.num_faces; ++f)
-    for(int a = 1; a < 3; ++a) {
-      const Index x = find(t.triangles[3 * f]), y = find(t.triangles[3 * f + a]);
-      if(x != y) parent[std::max(x, y)] = std::min(x, y);
-    }
-  // A root is its component's smallest vertex, so it is labelled before the rest of it.
-  std::vector<Index> label(t.num_vertices);
+    for(int a = 1; a < 3; ++a) sets.join(t.triangles[3 * f], t.triangles[3 * f + a]);
   Index components = 0;
-  for(Index v = 0; v < t.num_vertices; ++v) {
-    const Index r = find(v);
-    label[v] = r == v ? components++ : label[r];
-  }
+  std::vector<Index> label = sets.labels(components);
   if(count) *count = components;
   return label;
 }
