@@ -56,8 +56,8 @@ TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
   // lapmesh's kernels for V^T W and (as a fused pass with only its subtraction) W - V C with W of 1
   // to 8 columns, in both builds (the baseline and, where the CPU has it, AVX2 + FMA): every
   // width, column counts that leave every remainder of the groups of 8, 4, 2 and 1 columns,
-  // heights around the row panels (256 rows), and slices with outer strides whose neighbouring
-  // columns must stay untouched.
+  // heights around the row panels (256 rows) and others, and slices with outer strides whose
+  // neighbouring columns must stay untouched.
   using Eigen::Index;
   using Eigen::MatrixXd;
   namespace k = lapmesh::internal::thin_kernels;

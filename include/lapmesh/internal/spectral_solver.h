@@ -114,20 +114,19 @@ public:
                        Eigen::Index min_components = 2)
   {
     const Eigen::Index n = stiffness.rows();
-    Smallest_root_sets<Eigen::Index> components(n);
+    Smallest_root_sets<int> components(static_cast<int>(n));  // S's indices are int
     for(Eigen::Index j = 0; j < stiffness.outerSize(); ++j) {
       double row_sum = 0, row_abs = 0;  // S is symmetric: column j is row j
       for(Eigen::SparseMatrix<double>::InnerIterator it(stiffness, j); it; ++it) {
         row_sum += it.value();
         row_abs += std::abs(it.value());
-        if(it.value() != 0 && it.index() != j) components.join(it.index(), j);
+        if(it.value() != 0 && it.index() != j) components.join(int(it.index()), int(j));
       }
       if(!(std::abs(row_sum) <= 1e-10 * row_abs)) return;  // not a Laplacian: no known null space
     }
-    Eigen::Index c = 0;
-    const std::vector<Eigen::Index> label = components.labels(c);
-    m_component.resize(n);
-    for(Eigen::Index v = 0; v < n; ++v) m_component[v] = int(label[std::size_t(v)]);
+    int c = 0;
+    const std::vector<int> label = components.labels(c);
+    m_component = Eigen::Map<const Eigen::VectorXi>(label.data(), n);
     if(c < std::max<Eigen::Index>(min_components, 1)) {
       m_component.resize(0);
       return;
