@@ -54,10 +54,10 @@ TEST(BlockLanczos, EigenFallbackProductsAndEigenpairs)
 TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
 {
   // lapmesh's kernels for V^T W and (as a fused pass with only its subtraction) W - V C with W of 1
-  // to 8 columns, in both builds (the baseline and, where the CPU has it, AVX2 + FMA): every
-  // width, column counts that leave every remainder of the groups of 8, 4, 2 and 1 columns,
-  // heights around the row panels (256 rows) and others, and slices with outer strides whose
-  // neighbouring columns must stay untouched.
+  // to 8 columns, in every build (the baseline and, where the CPU has them, AVX2 + FMA and
+  // AVX-512): every width, column counts that leave every remainder of the groups of 8, 4, 2 and
+  // 1 columns, heights around the row panels (256 rows) and others, and slices with outer strides
+  // whose neighbouring columns must stay untouched.
   using Eigen::Index;
   using Eigen::MatrixXd;
   namespace k = lapmesh::internal::thin_kernels;
@@ -66,6 +66,7 @@ TEST(BlockLanczos, ThinKernelsEqualEigenProducts)
   std::vector<std::pair<Product, Fused>> builds = {{k::product_tn_baseline, k::fused_baseline}};
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
   if(k::use_avx2()) builds.emplace_back(k::product_tn_avx2, k::fused_avx2);
+  if(k::use_avx512()) builds.emplace_back(k::product_tn_avx512, k::fused_avx512);
 #endif
   int cases = 0;
   for(const auto& build : builds)
@@ -171,15 +172,16 @@ TEST(BlockLanczos, FusedPassesEqualEigenProducts)
 #ifdef LAPMESH_THIN_PRODUCTS
 TEST(BlockLanczos, FusedKernelBuildsEqualEigenProducts)
 {
-  // Both builds of the fused kernel (the baseline and, where the CPU has it, AVX2 + FMA) with every
-  // part of a pass switched on at once: W -= Vl Cl + Va Cg, the product Va^T W, W = W F, the Gram
-  // matrix, the result written to another slice.
+  // Every build of the fused kernel (the baseline and, where the CPU has them, AVX2 + FMA and
+  // AVX-512) with every part of a pass switched on at once: W -= Vl Cl + Va Cg, the product
+  // Va^T W, W = W F, the Gram matrix, the result written to another slice.
   using Eigen::Index;
   using Eigen::MatrixXd;
   namespace k = lapmesh::internal::thin_kernels;
   std::vector<void (*)(const k::Fused_pass&)> builds = {k::fused_baseline};
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
   if(k::use_avx2()) builds.push_back(k::fused_avx2);
+  if(k::use_avx512()) builds.push_back(k::fused_avx512);
 #endif
   int cases = 0;
   for(const auto build : builds)

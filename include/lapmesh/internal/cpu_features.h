@@ -18,6 +18,19 @@ inline bool cpu_has_avx2_fma()
 #endif
 }
 
+/// Whether the CPU has AVX-512 F and VL besides AVX2 and FMA: the third build of the kernels uses
+/// 64-byte vectors and the 32 vector registers of AVX-512.
+inline bool cpu_has_avx512()
+{
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  static const bool has =
+    cpu_has_avx2_fma() && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  return has;
+#else
+  return false;
+#endif
+}
+
 } // namespace internal
 } // namespace lapmesh
 

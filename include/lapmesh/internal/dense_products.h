@@ -9,8 +9,9 @@
 // vertices), so it reads the basis from memory and then computes from cache, one after the
 // other. The kernels below read each column of the basis once, in row panels, and multiply as
 // they read: the rows of the thin block sit side by side in a small buffer that stays in the
-// first-level cache. On x86-64 they are compiled for the baseline and for AVX2 + FMA, chosen at
-// run time.
+// first-level cache. On x86-64 they are compiled for the baseline, for AVX2 + FMA and for
+// AVX-512, chosen at run time: the AVX-512 build has twice the vector registers, which the
+// accumulators of blocks of 8 columns need.
 #ifndef LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 #define LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 
@@ -396,6 +397,16 @@ __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index
   product_tn_any_width(V, n, m, W, b, C, ldc);
 }
 __attribute__((target("avx2,fma"))) inline void fused_avx2(const Fused_pass& p) { fused_any_width(p); }
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void product_tn_avx512(Columns V, Index n, Index m,
+                                                                                 Columns W, Index b, double* C,
+                                                                                 Index ldc)
+{
+  product_tn_any_width(V, n, m, W, b, C, ldc);
+}
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void fused_avx512(const Fused_pass& p)
+{
+  fused_any_width(p);
+}
 #endif
 
 /// Whether the kernels are compiled for AVX2 + FMA and the CPU has both.
@@ -403,6 +414,16 @@ inline bool use_avx2()
 {
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
   return cpu_has_avx2_fma();
+#else
+  return false;
+#endif
+}
+
+/// Whether the kernels are compiled for AVX-512 and the CPU has it.
+inline bool use_avx512()
+{
+#ifdef LAPMESH_THIN_PRODUCTS_AVX2
+  return cpu_has_avx512();
 #else
   return false;
 #endif
@@ -417,8 +438,9 @@ struct Kernels
 inline const Kernels& kernels()
 {
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
-  static const Kernels chosen =
-    use_avx2() ? Kernels{&product_tn_avx2, &fused_avx2} : Kernels{&product_tn_baseline, &fused_baseline};
+  static const Kernels chosen = use_avx512() ? Kernels{&product_tn_avx512, &fused_avx512}
+                                : use_avx2() ? Kernels{&product_tn_avx2, &fused_avx2}
+                                             : Kernels{&product_tn_baseline, &fused_baseline};
 #else
   static const Kernels chosen{&product_tn_baseline, &fused_baseline};
 #endif

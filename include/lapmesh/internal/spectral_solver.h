@@ -517,9 +517,9 @@ inline void scaled_solve_in_solve_order(const Cholmod_supernodal_llt& factor, co
 #endif
 
 /// The block size of a block Lanczos run for m pairs, unless the options set one. Blocks of 4
-/// need fewer solves than blocks of 8 (a block of 8 is solved as two of 4); from a few hundred
-/// pairs on, the larger block's fewer passes over the basis make up for its extra solves
-/// (doc/spectral.md).
+/// need fewer solves than blocks of 8 (a block of 8 costs two of 4 without AVX-512, and more
+/// than one with it); from a few hundred pairs on, the larger block's fewer passes over the
+/// basis make up for its extra solves (doc/spectral.md).
 inline Eigen::Index default_block_size(Eigen::Index m) { return m < 250 ? 4 : 8; }
 
 /// The basis of a block Lanczos run for m pairs, per pair, unless the options set it. For a few

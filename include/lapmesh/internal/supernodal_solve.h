@@ -8,8 +8,8 @@
 // applied to the few values of the rows it touches; the rows are stored side by side so that one
 // cache line holds all the right-hand sides of a row. Four columns of a supernode go together
 // below its diagonal block, so that a row of X is loaded and stored once for four columns.
-// On x86-64 the kernels are compiled twice, for the baseline and for AVX2 + FMA, chosen at run
-// time (the generic build otherwise uses two-wide vectors only).
+// On x86-64 the kernels are compiled for the baseline, for AVX2 + FMA and for AVX-512, chosen at
+// run time (the generic build otherwise uses two-wide vectors only).
 #ifndef LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 #define LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 
@@ -52,13 +52,15 @@ struct Supernodal_factor_view
 
 namespace supernodal_kernels {
 
-// W values of one row of X (W = 1, 2 or 4) as one GCC vector, whose loads and stores need only
-// the alignment of a double: the arithmetic is vector code whatever the optimisation level.
+// W values of one row of X (W = 1, 2, 4 or 8) as one GCC vector, whose loads and stores need
+// only the alignment of a double: the arithmetic is vector code whatever the optimisation level.
 // Left to the compiler, the short loops over a row were vectorised well or badly depending on
 // the level and on small changes to the source (at -O2 the updates stayed scalar, since a row
-// may alias the row it is updated from). An 8-wide row, as a 64-byte vector or as a struct of
-// two 4-wide ones (which went through the stack), was 2-3 times slower than two passes of 4.
-// Wider blocks are solved in passes of 4, 2 and 1 columns over the same rows (solve_passes).
+// may alias the row it is updated from). Without AVX-512, an 8-wide row, as a 64-byte vector or
+// as a struct of two 4-wide ones (which went through the stack), was 2-3 times slower than two
+// passes of 4: blocks wider than 4 are solved in passes of 4, 2 and 1 columns over the same rows
+// (solve_passes). With AVX-512 a row of 8 is one register, and one pass over the factor for 8
+// columns costs far less than two (doc/benchmarks.md).
 template <int W>
 struct Row_type;
 template <>
@@ -78,6 +80,12 @@ template <>
 struct Row_type<4>
 {
   using type = Row4;
+};
+typedef double Row8 __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double))));
+template <>
+struct Row_type<8>
+{
+  using type = Row8;  // only in the AVX-512 build: one register there
 };
 #define LAPMESH_SUPERNODAL_ROW_VECTORS 1
 #endif
@@ -242,6 +250,16 @@ __attribute__((target("avx2,fma"))) inline void solve_avx2(const Supernodal_fact
 {
   solve_all(L, X, width);
 }
+
+/// Blocks of 8 in one pass over the factor, the others as in the AVX2 build.
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void solve_avx512(const Supernodal_factor_view& L,
+                                                                            double* X, std::size_t width)
+{
+  if(width == 8)
+    solve_pass<8, 8>(L, X);
+  else
+    solve_all(L, X, width);
+}
 #endif
 
 } // namespace supernodal_kernels
@@ -263,6 +281,10 @@ inline std::size_t supernodal_row_width(std::size_t width) { return width == 3 |
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
+  if(cpu_has_avx512()) {
+    supernodal_kernels::solve_avx512(L, X, width);
+    return;
+  }
   if(cpu_has_avx2_fma()) {
     supernodal_kernels::solve_avx2(L, X, width);
     return;
