@@ -10,8 +10,8 @@
 // other. The kernels below read each column of the basis once, in row panels, and multiply as
 // they read: the rows of the thin block sit side by side in a small buffer that stays in the
 // first-level cache. On x86-64 they are compiled for the baseline, for AVX2 + FMA and for
-// AVX-512, chosen at run time: the AVX-512 build has twice the vector registers, which the
-// accumulators of blocks of 8 columns need.
+// AVX-512, chosen at run time: in the AVX-512 build a row of a block of 8 columns is one
+// register, where the others hold it in two and run short of registers for the accumulators.
 #ifndef LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 #define LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 
@@ -108,15 +108,25 @@ inline void tall_gemm(bool transpose_a, double alpha, const Eigen::Ref<const Eig
 namespace thin_kernels {
 
 using Index = std::ptrdiff_t;
+// The kernels' registers: 4 doubles (AVX2 and the baseline, where GCC splits them), or 8 (AVX-512
+// only). A row of a block of Lanes values is Lanes / width<Vec> such vectors.
 typedef double Vec4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+typedef double Vec8 __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double))));
+template <typename Vec>
+constexpr int width = int(sizeof(Vec) / sizeof(double));
 
-LAPMESH_THIN_INLINE Vec4 load4(const double* p)
+template <typename Vec>
+LAPMESH_THIN_INLINE Vec load(const double* p)
 {
-  Vec4 v;
+  Vec v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-LAPMESH_THIN_INLINE void store4(double* p, const Vec4& v) { std::memcpy(p, &v, sizeof v); }
+template <typename Vec>
+LAPMESH_THIN_INLINE void store(double* p, const Vec& v)
+{
+  std::memcpy(p, &v, sizeof v);
+}
 
 /// Rows per panel of the product V^T W: the panel of W (at most 8 values a row) fills 16 KB.
 constexpr Index panel_rows = 256;
@@ -150,17 +160,17 @@ LAPMESH_THIN_INLINE void scatter_rows(const double* rows, Index b, Index r0, Ind
 }
 
 /// sums (rows j .. j + Cols - 1 of Lanes values each) += V[r0 : r0 + h, j : j + Cols]^T rows,
-/// with Lanes = 4 Vecs: Cols Vecs vectors accumulate independently.
-template <int Vecs, int Cols>
+/// with Lanes = width<Vec> Vecs: Cols Vecs vectors accumulate independently.
+template <typename Vec, int Vecs, int Cols>
 LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Index h, const double* rows, double* sums)
 {
-  constexpr int Lanes = 4 * Vecs;
+  constexpr int Lanes = width<Vec> * Vecs;
   const double* v = V.data + j * V.stride + r0;
-  Vec4 acc[Cols][Vecs] = {};
+  Vec acc[Cols][Vecs] = {};
   for(Index r = 0; r < h; ++r) {
-    Vec4 w[Vecs];
+    Vec w[Vecs];
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+    for(int q = 0; q < Vecs; ++q) w[q] = load<Vec>(rows + r * Lanes + width<Vec> * q);
 #pragma GCC unroll 8
     for(int c = 0; c < Cols; ++c) {
       const double s = v[c * V.stride + r];
@@ -172,28 +182,28 @@ LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Ind
   for(int c = 0; c < Cols; ++c)
 #pragma GCC unroll 2
     for(int q = 0; q < Vecs; ++q) {
-      double* out = sums + (j + c) * Lanes + 4 * q;
-      store4(out, load4(out) + acc[c][q]);
+      double* out = sums + (j + c) * Lanes + width<Vec> * q;
+      store<Vec>(out, load<Vec>(out) + acc[c][q]);
     }
 }
 
 /// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], rows and coefficients of
-/// Lanes = 4 Vecs values each.
-template <int Vecs, int Cols>
+/// Lanes = width<Vec> Vecs values each.
+template <typename Vec, int Vecs, int Cols>
 LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
                                                 double* rows)
 {
-  constexpr int Lanes = 4 * Vecs;
+  constexpr int Lanes = width<Vec> * Vecs;
   const double* v = V.data + j * V.stride + r0;
-  Vec4 k[Cols][Vecs];
+  Vec k[Cols][Vecs];
 #pragma GCC unroll 8
   for(int c = 0; c < Cols; ++c)
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) k[c][q] = load4(coefficients + (j + c) * Lanes + 4 * q);
+    for(int q = 0; q < Vecs; ++q) k[c][q] = load<Vec>(coefficients + (j + c) * Lanes + width<Vec> * q);
   for(Index r = 0; r < h; ++r) {
-    Vec4 w[Vecs];
+    Vec w[Vecs];
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+    for(int q = 0; q < Vecs; ++q) w[q] = load<Vec>(rows + r * Lanes + width<Vec> * q);
 #pragma GCC unroll 8
     for(int c = 0; c < Cols; ++c) {
       const double s = v[c * V.stride + r];
@@ -201,7 +211,7 @@ LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, In
       for(int q = 0; q < Vecs; ++q) w[q] -= s * k[c][q];
     }
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, w[q]);
+    for(int q = 0; q < Vecs; ++q) store<Vec>(rows + r * Lanes + width<Vec> * q, w[q]);
   }
 }
 
@@ -224,7 +234,7 @@ LAPMESH_THIN_INLINE void over_column_groups(Index m, const Step& step)
 }
 
 // The panel steps as objects (not lambdas, which would not be compiled for the caller's target).
-template <int Vecs>
+template <typename Vec, int Vecs>
 struct Accumulate_tn
 {
   Columns V;
@@ -234,11 +244,11 @@ struct Accumulate_tn
   template <int Cols>
   LAPMESH_THIN_INLINE void columns(Index j) const
   {
-    accumulate_tn_columns<Vecs, Cols>(V, j, r0, h, rows, sums);
+    accumulate_tn_columns<Vec, Vecs, Cols>(V, j, r0, h, rows, sums);
   }
 };
 
-template <int Vecs>
+template <typename Vec, int Vecs>
 struct Subtract_lanes
 {
   Columns V;
@@ -248,45 +258,47 @@ struct Subtract_lanes
   template <int Cols>
   LAPMESH_THIN_INLINE void columns(Index j) const
   {
-    subtract_lanes_columns<Vecs, Cols>(V, j, r0, h, coefficients, rows);
+    subtract_lanes_columns<Vec, Vecs, Cols>(V, j, r0, h, coefficients, rows);
   }
 };
 
 /// C (m x b, leading dimension ldc) = V[:, 0:m]^T W, V and W of n rows, 1 <= b <= 8.
-template <int Vecs>
+template <typename Vec, int Vecs>
 LAPMESH_THIN_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
-  constexpr int Lanes = 4 * Vecs;
+  constexpr int Lanes = width<Vec> * Vecs;
   std::vector<double> sums(std::size_t(m * Lanes), 0.0);
   alignas(32) double rows[panel_rows * Lanes] = {};
   for(Index r0 = 0; r0 < n; r0 += panel_rows) {
     const Index h = std::min(panel_rows, n - r0);
     gather_rows<Lanes>(W, b, r0, h, rows);
-    over_column_groups<8 / Vecs>(m, Accumulate_tn<Vecs>{V, r0, h, rows, sums.data()});
+    over_column_groups<8 / Vecs>(m, Accumulate_tn<Vec, Vecs>{V, r0, h, rows, sums.data()});
   }
   for(Index c = 0; c < b; ++c)
     for(Index j = 0; j < m; ++j) C[c * ldc + j] = sums[std::size_t(j * Lanes + c)];
 }
 
-/// product_tn() for a block of b columns: four lanes up to 4, eight beyond.
+/// product_tn() for a block of b columns: four lanes up to 4, eight beyond, in registers of type
+/// Wide (two Vec4 or one Vec8).
+template <typename Wide>
 LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
   if(b <= 4)
-    product_tn<1>(V, n, m, W, b, C, ldc);
+    product_tn<Vec4, 1>(V, n, m, W, b, C, ldc);
   else
-    product_tn<2>(V, n, m, W, b, C, ldc);
+    product_tn<Wide, 8 / width<Wide>>(V, n, m, W, b, C, ldc);
 }
 
 /// gram (Lanes x Lanes, row c at gram + c Lanes) += rows^T rows over h rows of Lanes values.
-template <int Vecs>
+template <typename Vec, int Vecs>
 LAPMESH_THIN_INLINE void accumulate_gram(Index h, const double* rows, double* gram)
 {
-  constexpr int Lanes = 4 * Vecs;
-  Vec4 acc[Lanes][Vecs] = {};
+  constexpr int Lanes = width<Vec> * Vecs;
+  Vec acc[Lanes][Vecs] = {};
   for(Index r = 0; r < h; ++r) {
-    Vec4 w[Vecs];
+    Vec w[Vecs];
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) w[q] = load4(rows + r * Lanes + 4 * q);
+    for(int q = 0; q < Vecs; ++q) w[q] = load<Vec>(rows + r * Lanes + width<Vec> * q);
 #pragma GCC unroll 8
     for(int c = 0; c < Lanes; ++c) {
       const double s = rows[r * Lanes + c];
@@ -297,21 +309,21 @@ LAPMESH_THIN_INLINE void accumulate_gram(Index h, const double* rows, double* gr
 #pragma GCC unroll 8
   for(int c = 0; c < Lanes; ++c)
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) store4(gram + c * Lanes + 4 * q, load4(gram + c * Lanes + 4 * q) + acc[c][q]);
+    for(int q = 0; q < Vecs; ++q) store<Vec>(gram + c * Lanes + width<Vec> * q, load<Vec>(gram + c * Lanes + width<Vec> * q) + acc[c][q]);
 }
 
 /// rows = rows F over h rows of Lanes values, F Lanes x Lanes (row c at factor + c Lanes).
-template <int Vecs>
+template <typename Vec, int Vecs>
 LAPMESH_THIN_INLINE void multiply_rows(Index h, const double* factor, double* rows)
 {
-  constexpr int Lanes = 4 * Vecs;
-  Vec4 f[Lanes][Vecs];
+  constexpr int Lanes = width<Vec> * Vecs;
+  Vec f[Lanes][Vecs];
 #pragma GCC unroll 8
   for(int c = 0; c < Lanes; ++c)
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) f[c][q] = load4(factor + c * Lanes + 4 * q);
+    for(int q = 0; q < Vecs; ++q) f[c][q] = load<Vec>(factor + c * Lanes + width<Vec> * q);
   for(Index r = 0; r < h; ++r) {
-    Vec4 y[Vecs] = {};
+    Vec y[Vecs] = {};
 #pragma GCC unroll 8
     for(int c = 0; c < Lanes; ++c) {
       const double s = rows[r * Lanes + c];
@@ -319,7 +331,7 @@ LAPMESH_THIN_INLINE void multiply_rows(Index h, const double* factor, double* ro
       for(int q = 0; q < Vecs; ++q) y[q] += s * f[c][q];
     }
 #pragma GCC unroll 2
-    for(int q = 0; q < Vecs; ++q) store4(rows + r * Lanes + 4 * q, y[q]);
+    for(int q = 0; q < Vecs; ++q) store<Vec>(rows + r * Lanes + width<Vec> * q, y[q]);
   }
 }
 
@@ -349,10 +361,10 @@ struct Fused_pass
 ///   subtract_then_gram():       W -= Va Cg, then G = W^T W;
 ///   multiply_then_gram():       Out = W F, then G = Out^T Out (Out may be W).
 /// A null pointer skips its part, a zero `ml` the first subtraction.
-template <int Vecs>
+template <typename Vec, int Vecs>
 LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
 {
-  constexpr int Lanes = 4 * Vecs;
+  constexpr int Lanes = width<Vec> * Vecs;
   std::vector<double> sums(std::size_t(p.product ? p.ma * Lanes : 0), 0.0);
   alignas(32) double rows[panel_rows * Lanes] = {};
   alignas(32) double gram_lanes[Lanes * Lanes] = {};
@@ -360,12 +372,12 @@ LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
     const Index h = std::min(panel_rows, p.n - r0);
     gather_rows<Lanes>(p.W, p.b, r0, h, rows);
     if(p.ml > 0)
-      over_column_groups<8 / Vecs>(p.ml, Subtract_lanes<Vecs>{p.Vl, r0, h, p.local_coefficients, rows});
+      over_column_groups<8 / Vecs>(p.ml, Subtract_lanes<Vec, Vecs>{p.Vl, r0, h, p.local_coefficients, rows});
     if(p.all_coefficients)
-      over_column_groups<8 / Vecs>(p.ma, Subtract_lanes<Vecs>{p.Va, r0, h, p.all_coefficients, rows});
-    if(p.product) over_column_groups<8 / Vecs>(p.ma, Accumulate_tn<Vecs>{p.Va, r0, h, rows, sums.data()});
-    if(p.factor) multiply_rows<Vecs>(h, p.factor, rows);
-    if(p.gram) accumulate_gram<Vecs>(h, rows, gram_lanes);
+      over_column_groups<8 / Vecs>(p.ma, Subtract_lanes<Vec, Vecs>{p.Va, r0, h, p.all_coefficients, rows});
+    if(p.product) over_column_groups<8 / Vecs>(p.ma, Accumulate_tn<Vec, Vecs>{p.Va, r0, h, rows, sums.data()});
+    if(p.factor) multiply_rows<Vec, Vecs>(h, p.factor, rows);
+    if(p.gram) accumulate_gram<Vec, Vecs>(h, rows, gram_lanes);
     scatter_rows<Lanes>(rows, p.b, r0, h, p.out, p.ldo);
   }
   if(p.product)
@@ -376,36 +388,38 @@ LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
       for(Index j = 0; j < p.b; ++j) p.gram[c * p.b + j] = gram_lanes[j * Lanes + c];
 }
 
+/// fused_panels() for a block of b columns, as product_tn_any_width().
+template <typename Wide>
 LAPMESH_THIN_INLINE void fused_any_width(const Fused_pass& p)
 {
   if(p.b <= 4)
-    fused_panels<1>(p);
+    fused_panels<Vec4, 1>(p);
   else
-    fused_panels<2>(p);
+    fused_panels<Wide, 8 / width<Wide>>(p);
 }
 
-inline void fused_baseline(const Fused_pass& p) { fused_any_width(p); }
+inline void fused_baseline(const Fused_pass& p) { fused_any_width<Vec4>(p); }
 
 inline void product_tn_baseline(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
-  product_tn_any_width(V, n, m, W, b, C, ldc);
+  product_tn_any_width<Vec4>(V, n, m, W, b, C, ldc);
 }
 #ifdef LAPMESH_THIN_PRODUCTS_AVX2
 __attribute__((target("avx2,fma"))) inline void product_tn_avx2(Columns V, Index n, Index m, Columns W, Index b,
                                                                  double* C, Index ldc)
 {
-  product_tn_any_width(V, n, m, W, b, C, ldc);
+  product_tn_any_width<Vec4>(V, n, m, W, b, C, ldc);
 }
-__attribute__((target("avx2,fma"))) inline void fused_avx2(const Fused_pass& p) { fused_any_width(p); }
+__attribute__((target("avx2,fma"))) inline void fused_avx2(const Fused_pass& p) { fused_any_width<Vec4>(p); }
 __attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void product_tn_avx512(Columns V, Index n, Index m,
                                                                                  Columns W, Index b, double* C,
                                                                                  Index ldc)
 {
-  product_tn_any_width(V, n, m, W, b, C, ldc);
+  product_tn_any_width<Vec8>(V, n, m, W, b, C, ldc);
 }
 __attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void fused_avx512(const Fused_pass& p)
 {
-  fused_any_width(p);
+  fused_any_width<Vec8>(p);
 }
 #endif
 
