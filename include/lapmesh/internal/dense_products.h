@@ -16,13 +16,13 @@
 #define LAPMESH_INTERNAL_DENSE_PRODUCTS_H
 
 #include <lapmesh/internal/cpu_features.h>
+#include <lapmesh/internal/vector_registers.h>
 
 #include <Eigen/Core>
 
 #include <algorithm>
 #include <cassert>
 #include <cstddef>
-#include <cstring>
 #include <vector>
 
 // The baseline build passes 32-byte vectors between inlined helpers, for which GCC notes that the
@@ -31,11 +31,11 @@
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
-// The kernels use GCC's vector extensions (GCC and Clang); elsewhere the BLAS or Eigen does all.
-#if defined(__GNUC__)
+// The kernels need vector registers (GCC and Clang); elsewhere the BLAS or Eigen does all.
+#ifdef LAPMESH_VECTOR_REGISTERS
 #define LAPMESH_THIN_PRODUCTS 1
 #define LAPMESH_THIN_INLINE __attribute__((always_inline)) inline
-#if defined(__x86_64__)
+#ifdef LAPMESH_X86_KERNEL_BUILDS
 #define LAPMESH_THIN_PRODUCTS_AVX2 1
 #endif
 #endif
@@ -110,23 +110,11 @@ namespace thin_kernels {
 using Index = std::ptrdiff_t;
 // The kernels' registers: 4 doubles (AVX2 and the baseline, where GCC splits them), or 8 (AVX-512
 // only). A row of a block of Lanes values is Lanes / width<Vec> such vectors.
-typedef double Vec4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
-typedef double Vec8 __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double))));
-template <typename Vec>
-constexpr int width = int(sizeof(Vec) / sizeof(double));
-
-template <typename Vec>
-LAPMESH_THIN_INLINE Vec load(const double* p)
-{
-  Vec v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-template <typename Vec>
-LAPMESH_THIN_INLINE void store(double* p, const Vec& v)
-{
-  std::memcpy(p, &v, sizeof v);
-}
+using vector_registers::load;
+using vector_registers::store;
+using vector_registers::Vec4;
+using vector_registers::Vec8;
+using vector_registers::width;
 
 /// Rows per panel of the product V^T W: the panel of W (at most 8 values a row) fills 16 KB.
 constexpr Index panel_rows = 256;

@@ -8,16 +8,16 @@
 // applied to the few values of the rows it touches; the rows are stored side by side so that one
 // cache line holds all the right-hand sides of a row. Four columns of a supernode go together
 // below its diagonal block, so that a row of X is loaded and stored once for four columns.
-// On x86-64 the kernels are compiled for the baseline, for AVX2 + FMA and for AVX-512, chosen at
-// run time (the generic build otherwise uses two-wide vectors only).
+// On x86-64 the kernels are compiled for the baseline, for AVX2 + FMA and (blocks of 8) for AVX-512,
+// chosen at run time (the generic build otherwise uses two-wide vectors only).
 #ifndef LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 #define LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
 
 #include <lapmesh/internal/cpu_features.h>
+#include <lapmesh/internal/vector_registers.h>
 
 #include <cassert>
 #include <cstddef>
-#include <cstring>
 
 // The baseline build of the kernels passes 32-byte vectors between inlined helpers, for which
 // GCC and Clang note that the ABI differs with AVX: nothing crosses a call boundary.
@@ -26,8 +26,10 @@
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#ifdef LAPMESH_X86_KERNEL_BUILDS
 #define LAPMESH_SUPERNODAL_SOLVE_AVX2 1
+#endif
+#ifdef LAPMESH_VECTOR_REGISTERS
 #define LAPMESH_ALWAYS_INLINE __attribute__((always_inline)) inline
 #else
 #define LAPMESH_ALWAYS_INLINE inline
@@ -52,15 +54,16 @@ struct Supernodal_factor_view
 
 namespace supernodal_kernels {
 
-// W values of one row of X (W = 1, 2, 4 or 8) as one GCC vector, whose loads and stores need
-// only the alignment of a double: the arithmetic is vector code whatever the optimisation level.
-// Left to the compiler, the short loops over a row were vectorised well or badly depending on
-// the level and on small changes to the source (at -O2 the updates stayed scalar, since a row
-// may alias the row it is updated from). Without AVX-512, an 8-wide row, as a 64-byte vector or
-// as a struct of two 4-wide ones (which went through the stack), was 2-3 times slower than two
-// passes of 4: blocks wider than 4 are solved in passes of 4, 2 and 1 columns over the same rows
-// (solve_passes). With AVX-512 a row of 8 is one register, and one pass over the factor for 8
-// columns costs far less than two (doc/benchmarks.md).
+// W values of one row of X (W = 1, 2, 4 or 8) as one vector (vector_registers.h): left to the
+// compiler, the updates of a row stayed scalar at -O2, since a row may alias the row it is
+// updated from. Without AVX-512, an 8-wide row, as a 64-byte vector or as a struct of two 4-wide
+// ones (which went through the stack), was 2-3 times slower than two passes of 4: blocks wider
+// than 4 are solved in passes of 4, 2 and 1 columns over the same rows (solve_passes). With
+// AVX-512 a row of 8 is one register, and one pass over the factor for 8 columns costs far less
+// than two (doc/benchmarks.md).
+using vector_registers::load;
+using vector_registers::store;
+using vector_registers::zero;
 template <int W>
 struct Row_type;
 template <>
@@ -68,47 +71,23 @@ struct Row_type<1>
 {
   using type = double;
 };
-#if defined(__GNUC__) || defined(__clang__)
-typedef double Row2 __attribute__((vector_size(2 * sizeof(double)), aligned(sizeof(double))));
-typedef double Row4 __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+#ifdef LAPMESH_VECTOR_REGISTERS
 template <>
 struct Row_type<2>
 {
-  using type = Row2;
+  using type = vector_registers::Vec2;
 };
 template <>
 struct Row_type<4>
 {
-  using type = Row4;
+  using type = vector_registers::Vec4;
 };
-typedef double Row8 __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double))));
 template <>
 struct Row_type<8>
 {
-  using type = Row8;  // only in the AVX-512 build: one register there
+  using type = vector_registers::Vec8;  // only in the AVX-512 build: one register there
 };
-#define LAPMESH_SUPERNODAL_ROW_VECTORS 1
 #endif
-
-template <int W>
-LAPMESH_ALWAYS_INLINE typename Row_type<W>::type load_row(const double* p)
-{
-  typename Row_type<W>::type r;
-  std::memcpy(&r, p, sizeof r);
-  return r;
-}
-template <int W>
-LAPMESH_ALWAYS_INLINE void store_row(double* p, const typename Row_type<W>::type& r)
-{
-  std::memcpy(p, &r, sizeof r);
-}
-template <int W>
-LAPMESH_ALWAYS_INLINE typename Row_type<W>::type zero_row()
-{
-  typename Row_type<W>::type r;
-  std::memset(&r, 0, sizeof r);
-  return r;
-}
 
 // W of the right-hand sides of X, which holds Stride of them row by row (the W start at X).
 template <int W, int Stride>
@@ -124,11 +103,11 @@ LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
     for(int j = 0; j < ncol; ++j) {  // the dense triangle of the supernode
       const double* col = Ls + std::size_t(j) * std::size_t(nrow);
       double* xj = Xs + std::size_t(j) * stride;
-      const R vj = (1.0 / col[j]) * load_row<W>(xj);
-      store_row<W>(xj, vj);
+      const R vj = (1.0 / col[j]) * load<R>(xj);
+      store<R>(xj, vj);
       for(int i = j + 1; i < ncol; ++i) {
         double* xi = Xs + std::size_t(i) * stride;
-        store_row<W>(xi, load_row<W>(xi) - col[i] * vj);
+        store<R>(xi, load<R>(xi) - col[i] * vj);
       }
     }
     int j = 0;
@@ -136,19 +115,19 @@ LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
       const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
       const double* xj = Xs + std::size_t(j) * stride;
-      const R v0 = load_row<W>(xj), v1 = load_row<W>(xj + stride), v2 = load_row<W>(xj + 2 * stride),
-              v3 = load_row<W>(xj + 3 * stride);
+      const R v0 = load<R>(xj), v1 = load<R>(xj + stride), v2 = load<R>(xj + 2 * stride),
+              v3 = load<R>(xj + 3 * stride);
       for(int i = ncol; i < nrow; ++i) {
         double* xi = X + std::size_t(rows[i]) * stride;
-        store_row<W>(xi, load_row<W>(xi) - ((c0[i] * v0 + c1[i] * v1) + (c2[i] * v2 + c3[i] * v3)));
+        store<R>(xi, load<R>(xi) - ((c0[i] * v0 + c1[i] * v1) + (c2[i] * v2 + c3[i] * v3)));
       }
     }
     for(; j < ncol; ++j) {
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      const R v0 = load_row<W>(Xs + std::size_t(j) * stride);
+      const R v0 = load<R>(Xs + std::size_t(j) * stride);
       for(int i = ncol; i < nrow; ++i) {
         double* xi = X + std::size_t(rows[i]) * stride;
-        store_row<W>(xi, load_row<W>(xi) - c0[i] * v0);
+        store<R>(xi, load<R>(xi) - c0[i] * v0);
       }
     }
   }
@@ -168,38 +147,38 @@ LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
     for(; j + 4 <= ncol; j += 4) {  // the rows below the triangle, four columns at a time
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
       const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
-      R a0 = zero_row<W>(), a1 = a0, a2 = a0, a3 = a0;
+      R a0 = zero<R>(), a1 = a0, a2 = a0, a3 = a0;
       for(int i = ncol; i < nrow; ++i) {
-        const R xi = load_row<W>(X + std::size_t(rows[i]) * stride);
+        const R xi = load<R>(X + std::size_t(rows[i]) * stride);
         a0 = a0 + c0[i] * xi;
         a1 = a1 + c1[i] * xi;
         a2 = a2 + c2[i] * xi;
         a3 = a3 + c3[i] * xi;
       }
       double* v0 = Xs + std::size_t(j) * stride;
-      store_row<W>(v0, load_row<W>(v0) - a0);
-      store_row<W>(v0 + stride, load_row<W>(v0 + stride) - a1);
-      store_row<W>(v0 + 2 * stride, load_row<W>(v0 + 2 * stride) - a2);
-      store_row<W>(v0 + 3 * stride, load_row<W>(v0 + 3 * stride) - a3);
+      store<R>(v0, load<R>(v0) - a0);
+      store<R>(v0 + stride, load<R>(v0 + stride) - a1);
+      store<R>(v0 + 2 * stride, load<R>(v0 + 2 * stride) - a2);
+      store<R>(v0 + 3 * stride, load<R>(v0 + 3 * stride) - a3);
     }
     for(; j < ncol; ++j) {  // two partial sums: the additions of one sum form a dependency chain
       const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      R a0 = zero_row<W>(), a1 = a0;
+      R a0 = zero<R>(), a1 = a0;
       int i = ncol;
       for(; i + 1 < nrow; i += 2) {
-        a0 = a0 + c0[i] * load_row<W>(X + std::size_t(rows[i]) * stride);
-        a1 = a1 + c0[i + 1] * load_row<W>(X + std::size_t(rows[i + 1]) * stride);
+        a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * stride);
+        a1 = a1 + c0[i + 1] * load<R>(X + std::size_t(rows[i + 1]) * stride);
       }
-      if(i < nrow) a0 = a0 + c0[i] * load_row<W>(X + std::size_t(rows[i]) * stride);
+      if(i < nrow) a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * stride);
       double* v0 = Xs + std::size_t(j) * stride;
-      store_row<W>(v0, load_row<W>(v0) - (a0 + a1));
+      store<R>(v0, load<R>(v0) - (a0 + a1));
     }
     for(int jj = ncol; jj-- > 0;) {  // the dense triangle, backwards
       const double* col = Ls + std::size_t(jj) * std::size_t(nrow);
       double* xj = Xs + std::size_t(jj) * stride;
-      R acc = load_row<W>(xj);
-      for(int i = jj + 1; i < ncol; ++i) acc = acc - col[i] * load_row<W>(Xs + std::size_t(i) * stride);
-      store_row<W>(xj, (1.0 / col[jj]) * acc);
+      R acc = load<R>(xj);
+      for(int i = jj + 1; i < ncol; ++i) acc = acc - col[i] * load<R>(Xs + std::size_t(i) * stride);
+      store<R>(xj, (1.0 / col[jj]) * acc);
     }
   }
 }
@@ -211,7 +190,7 @@ LAPMESH_ALWAYS_INLINE void solve_pass(const Supernodal_factor_view& L, double* X
   backward<W, Stride>(L, X);
 }
 
-#ifdef LAPMESH_SUPERNODAL_ROW_VECTORS
+#ifdef LAPMESH_VECTOR_REGISTERS
 constexpr int widest_pass = 4;
 #else
 constexpr int widest_pass = 1;  // plain doubles: one column per pass
@@ -251,14 +230,15 @@ __attribute__((target("avx2,fma"))) inline void solve_avx2(const Supernodal_fact
   solve_all(L, X, width);
 }
 
-/// Blocks of 8 in one pass over the factor, the others as in the AVX2 build.
+/// Blocks of 8 in one pass over the factor; the other widths are the AVX2 build's (measured level
+/// with an AVX-512 build of them), so that their kernels are not compiled a third time.
 __attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void solve_avx512(const Supernodal_factor_view& L,
                                                                             double* X, std::size_t width)
 {
   if(width == 8)
     solve_pass<8, 8>(L, X);
   else
-    solve_all(L, X, width);
+    solve_avx2(L, X, width);
 }
 #endif
 
@@ -297,7 +277,6 @@ inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X
 } // namespace lapmesh
 
 #undef LAPMESH_ALWAYS_INLINE
-#undef LAPMESH_SUPERNODAL_ROW_VECTORS
 #if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
