@@ -252,8 +252,17 @@ inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && wid
 
 /// How many values a row of the kernels' block holds for `width` right-hand sides
 /// (supernodal_kernels_fit(width)): 3 and 7 are solved as 4 and 8 with zero columns, which is
-/// faster than their passes of 2 + 1 and 4 + 2 + 1 columns.
-inline std::size_t supernodal_row_width(std::size_t width) { return width == 3 || width == 7 ? width + 1 : width; }
+/// faster than their passes of 2 + 1 and 4 + 2 + 1 columns; where the AVX-512 build runs, which
+/// solves 8 columns in one pass, 5 and 6 are solved as 8 as well, instead of in passes of 4 + 1
+/// and 4 + 2 (doc/spectral.md). A column's arithmetic is the same in either layout.
+inline std::size_t supernodal_row_width(std::size_t width)
+{
+  if(width == 3 || width == 7) return width + 1;
+#ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
+  if((width == 5 || width == 6) && cpu_has_avx512()) return 8;
+#endif
+  return width;
+}
 
 /// Solves L L^T X = B in place: X holds `width` columns row by row (row i at X + i * width), in
 /// the factor's (permuted) numbering; `width` is the supernodal_row_width() of B's columns
