@@ -34,7 +34,6 @@
 // The kernels need vector registers (GCC and Clang); elsewhere the BLAS or Eigen does all.
 #ifdef LAPMESH_VECTOR_REGISTERS
 #define LAPMESH_THIN_PRODUCTS 1
-#define LAPMESH_THIN_INLINE __attribute__((always_inline)) inline
 #ifdef LAPMESH_X86_KERNEL_BUILDS
 #define LAPMESH_THIN_PRODUCTS_AVX2 1
 #endif
@@ -129,7 +128,7 @@ struct Columns
 /// Copies rows [r0, r0 + h) of the b columns of W into `rows`, Lanes values a row. The values
 /// past b are left as they are: the lanes of a row never mix, and only the first b are read back.
 template <int Lanes>
-LAPMESH_THIN_INLINE void gather_rows(Columns W, Index b, Index r0, Index h, double* rows)
+LAPMESH_KERNEL_INLINE void gather_rows(Columns W, Index b, Index r0, Index h, double* rows)
 {
   for(Index c = 0; c < b; ++c) {
     const double* w = W.data + c * W.stride + r0;
@@ -139,7 +138,7 @@ LAPMESH_THIN_INLINE void gather_rows(Columns W, Index b, Index r0, Index h, doub
 
 /// The inverse of gather_rows().
 template <int Lanes>
-LAPMESH_THIN_INLINE void scatter_rows(const double* rows, Index b, Index r0, Index h, double* W, Index ldw)
+LAPMESH_KERNEL_INLINE void scatter_rows(const double* rows, Index b, Index r0, Index h, double* W, Index ldw)
 {
   for(Index c = 0; c < b; ++c) {
     double* w = W + c * ldw + r0;
@@ -150,7 +149,7 @@ LAPMESH_THIN_INLINE void scatter_rows(const double* rows, Index b, Index r0, Ind
 /// sums (rows j .. j + Cols - 1 of Lanes values each) += V[r0 : r0 + h, j : j + Cols]^T rows,
 /// with Lanes = width<Vec> Vecs: Cols Vecs vectors accumulate independently.
 template <typename Vec, int Vecs, int Cols>
-LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Index h, const double* rows, double* sums)
+LAPMESH_KERNEL_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Index h, const double* rows, double* sums)
 {
   constexpr int Lanes = width<Vec> * Vecs;
   const double* v = V.data + j * V.stride + r0;
@@ -178,7 +177,7 @@ LAPMESH_THIN_INLINE void accumulate_tn_columns(Columns V, Index j, Index r0, Ind
 /// rows -= V[r0 : r0 + h, j : j + Cols] coefficients[j : j + Cols], rows and coefficients of
 /// Lanes = width<Vec> Vecs values each.
 template <typename Vec, int Vecs, int Cols>
-LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
+LAPMESH_KERNEL_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, Index h, const double* coefficients,
                                                 double* rows)
 {
   constexpr int Lanes = width<Vec> * Vecs;
@@ -206,7 +205,7 @@ LAPMESH_THIN_INLINE void subtract_lanes_columns(Columns V, Index j, Index r0, In
 /// Runs `step.template columns<Cols>(j)` over columns [0, m) of V: Widest columns at a time, the
 /// rest in groups of 4, 2 and 1.
 template <int Widest, typename Step>
-LAPMESH_THIN_INLINE void over_column_groups(Index m, const Step& step)
+LAPMESH_KERNEL_INLINE void over_column_groups(Index m, const Step& step)
 {
   Index j = 0;
   for(; j + Widest <= m; j += Widest) step.template columns<Widest>(j);
@@ -230,7 +229,7 @@ struct Accumulate_tn
   const double* rows;
   double* sums;
   template <int Cols>
-  LAPMESH_THIN_INLINE void columns(Index j) const
+  LAPMESH_KERNEL_INLINE void columns(Index j) const
   {
     accumulate_tn_columns<Vec, Vecs, Cols>(V, j, r0, h, rows, sums);
   }
@@ -244,7 +243,7 @@ struct Subtract_lanes
   const double* coefficients;
   double* rows;
   template <int Cols>
-  LAPMESH_THIN_INLINE void columns(Index j) const
+  LAPMESH_KERNEL_INLINE void columns(Index j) const
   {
     subtract_lanes_columns<Vec, Vecs, Cols>(V, j, r0, h, coefficients, rows);
   }
@@ -252,7 +251,7 @@ struct Subtract_lanes
 
 /// C (m x b, leading dimension ldc) = V[:, 0:m]^T W, V and W of n rows, 1 <= b <= 8.
 template <typename Vec, int Vecs>
-LAPMESH_THIN_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+LAPMESH_KERNEL_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
   constexpr int Lanes = width<Vec> * Vecs;
   std::vector<double> sums(std::size_t(m * Lanes), 0.0);
@@ -269,7 +268,7 @@ LAPMESH_THIN_INLINE void product_tn(Columns V, Index n, Index m, Columns W, Inde
 /// product_tn() for a block of b columns: four lanes up to 4, eight beyond, in registers of type
 /// Wide (two Vec4 or one Vec8).
 template <typename Wide>
-LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
+LAPMESH_KERNEL_INLINE void product_tn_any_width(Columns V, Index n, Index m, Columns W, Index b, double* C, Index ldc)
 {
   if(b <= 4)
     product_tn<Vec4, 1>(V, n, m, W, b, C, ldc);
@@ -279,7 +278,7 @@ LAPMESH_THIN_INLINE void product_tn_any_width(Columns V, Index n, Index m, Colum
 
 /// gram (Lanes x Lanes, row c at gram + c Lanes) += rows^T rows over h rows of Lanes values.
 template <typename Vec, int Vecs>
-LAPMESH_THIN_INLINE void accumulate_gram(Index h, const double* rows, double* gram)
+LAPMESH_KERNEL_INLINE void accumulate_gram(Index h, const double* rows, double* gram)
 {
   constexpr int Lanes = width<Vec> * Vecs;
   Vec acc[Lanes][Vecs] = {};
@@ -302,7 +301,7 @@ LAPMESH_THIN_INLINE void accumulate_gram(Index h, const double* rows, double* gr
 
 /// rows = rows F over h rows of Lanes values, F Lanes x Lanes (row c at factor + c Lanes).
 template <typename Vec, int Vecs>
-LAPMESH_THIN_INLINE void multiply_rows(Index h, const double* factor, double* rows)
+LAPMESH_KERNEL_INLINE void multiply_rows(Index h, const double* factor, double* rows)
 {
   constexpr int Lanes = width<Vec> * Vecs;
   Vec f[Lanes][Vecs];
@@ -350,7 +349,7 @@ struct Fused_pass
 ///   multiply_then_gram():       Out = W F, then G = Out^T Out (Out may be W).
 /// A null pointer skips its part, a zero `ml` the first subtraction.
 template <typename Vec, int Vecs>
-LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
+LAPMESH_KERNEL_INLINE void fused_panels(const Fused_pass& p)
 {
   constexpr int Lanes = width<Vec> * Vecs;
   std::vector<double> sums(std::size_t(p.product ? p.ma * Lanes : 0), 0.0);
@@ -378,7 +377,7 @@ LAPMESH_THIN_INLINE void fused_panels(const Fused_pass& p)
 
 /// fused_panels() for a block of b columns, as product_tn_any_width().
 template <typename Wide>
-LAPMESH_THIN_INLINE void fused_any_width(const Fused_pass& p)
+LAPMESH_KERNEL_INLINE void fused_any_width(const Fused_pass& p)
 {
   if(p.b <= 4)
     fused_panels<Vec4, 1>(p);
@@ -469,7 +468,6 @@ inline void thin_product_tn(const Eigen::Ref<const Eigen::MatrixXd>& V, const Ei
 } // namespace lapmesh
 
 #if defined(__GNUC__)
-#undef LAPMESH_THIN_INLINE
 #pragma GCC diagnostic pop
 #endif
 

@@ -29,11 +29,6 @@
 #ifdef LAPMESH_X86_KERNEL_BUILDS
 #define LAPMESH_SUPERNODAL_SOLVE_AVX2 1
 #endif
-#ifdef LAPMESH_VECTOR_REGISTERS
-#define LAPMESH_ALWAYS_INLINE __attribute__((always_inline)) inline
-#else
-#define LAPMESH_ALWAYS_INLINE inline
-#endif
 
 namespace lapmesh {
 namespace internal {
@@ -91,7 +86,7 @@ struct Row_type<8>
 
 // W of the right-hand sides of X, which holds Stride of them row by row (the W start at X).
 template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
+LAPMESH_KERNEL_INLINE void forward(const Supernodal_factor_view& L, double* X)
 {
   using R = typename Row_type<W>::type;
   constexpr std::size_t stride = Stride;
@@ -134,7 +129,7 @@ LAPMESH_ALWAYS_INLINE void forward(const Supernodal_factor_view& L, double* X)
 }
 
 template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
+LAPMESH_KERNEL_INLINE void backward(const Supernodal_factor_view& L, double* X)
 {
   using R = typename Row_type<W>::type;
   constexpr std::size_t stride = Stride;
@@ -184,7 +179,7 @@ LAPMESH_ALWAYS_INLINE void backward(const Supernodal_factor_view& L, double* X)
 }
 
 template <int W, int Stride>
-LAPMESH_ALWAYS_INLINE void solve_pass(const Supernodal_factor_view& L, double* X)
+LAPMESH_KERNEL_INLINE void solve_pass(const Supernodal_factor_view& L, double* X)
 {
   forward<W, Stride>(L, X);
   backward<W, Stride>(L, X);
@@ -198,7 +193,7 @@ constexpr int widest_pass = 1;  // plain doubles: one column per pass
 
 // Columns [Offset, Stride) of a block of Stride columns, in passes of 4, 2 and 1 columns.
 template <int Stride, int Offset = 0>
-LAPMESH_ALWAYS_INLINE void solve_passes(const Supernodal_factor_view& L, double* X)
+LAPMESH_KERNEL_INLINE void solve_passes(const Supernodal_factor_view& L, double* X)
 {
   if constexpr(Offset < Stride) {
     constexpr int left = Stride - Offset;
@@ -209,7 +204,7 @@ LAPMESH_ALWAYS_INLINE void solve_passes(const Supernodal_factor_view& L, double*
 }
 
 // The block, `width` a supernodal_row_width().
-LAPMESH_ALWAYS_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
+LAPMESH_KERNEL_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
   switch(width) {
     case 2: solve_passes<2>(L, X); return;
@@ -250,17 +245,27 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void solve_avx512(co
 /// for their overhead.
 inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && width <= 8; }
 
+/// Whether the build of the solve that this CPU runs takes a row of 8 right-hand sides in one
+/// pass over the factor (the AVX-512 build); the others take it in two passes of 4.
+inline bool supernodal_rows_of_eight_in_one_pass()
+{
+#ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
+  return cpu_has_avx512();
+#else
+  return false;
+#endif
+}
+
 /// How many values a row of the kernels' block holds for `width` right-hand sides
 /// (supernodal_kernels_fit(width)): 3 and 7 are solved as 4 and 8 with zero columns, which is
-/// faster than their passes of 2 + 1 and 4 + 2 + 1 columns; where the AVX-512 build runs, which
-/// solves 8 columns in one pass, 5 and 6 are solved as 8 as well, instead of in passes of 4 + 1
-/// and 4 + 2 (doc/spectral.md). A column's arithmetic is the same in either layout.
+/// faster than their passes of 2 + 1 and 4 + 2 + 1 columns; where 8 columns take one pass
+/// (supernodal_rows_of_eight_in_one_pass()), 5 and 6 are solved as 8 as well, instead of in
+/// passes of 4 + 1 and 4 + 2 (doc/spectral.md). A column's arithmetic is the same in either
+/// layout.
 inline std::size_t supernodal_row_width(std::size_t width)
 {
   if(width == 3 || width == 7) return width + 1;
-#ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
-  if((width == 5 || width == 6) && cpu_has_avx512()) return 8;
-#endif
+  if((width == 5 || width == 6) && supernodal_rows_of_eight_in_one_pass()) return 8;
   return width;
 }
 
@@ -270,7 +275,7 @@ inline std::size_t supernodal_row_width(std::size_t width)
 inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
-  if(cpu_has_avx512()) {
+  if(supernodal_rows_of_eight_in_one_pass()) {
     supernodal_kernels::solve_avx512(L, X, width);
     return;
   }
@@ -285,7 +290,6 @@ inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X
 } // namespace internal
 } // namespace lapmesh
 
-#undef LAPMESH_ALWAYS_INLINE
 #if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif

@@ -16,10 +16,15 @@
 #if defined(__GNUC__)  // GCC and Clang
 #define LAPMESH_VECTOR_REGISTERS 1
 #if defined(__x86_64__)
-/// The kernels are compiled three times, for the baseline, AVX2 + FMA and AVX-512, and the CPU's
-/// features (cpu_features.h) choose one at run time.
+/// The kernels have builds for the baseline, AVX2 + FMA and AVX-512, among which the CPU's
+/// features (cpu_features.h) choose at run time.
 #define LAPMESH_X86_KERNEL_BUILDS 1
 #endif
+/// The kernels' helpers are always inlined: only then are they compiled for the target of the
+/// build that calls them.
+#define LAPMESH_KERNEL_INLINE __attribute__((always_inline)) inline
+#else
+#define LAPMESH_KERNEL_INLINE inline
 #endif
 
 #if defined(__GNUC__)
@@ -27,9 +32,6 @@
 // notes that the ABI differs with AVX: nothing crosses a call boundary.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
-#define LAPMESH_VECTOR_INLINE __attribute__((always_inline)) inline
-#else
-#define LAPMESH_VECTOR_INLINE inline
 #endif
 
 namespace lapmesh {
@@ -47,7 +49,7 @@ template <typename Vec>
 constexpr int width = int(sizeof(Vec) / sizeof(double));
 
 template <typename Vec>
-LAPMESH_VECTOR_INLINE Vec load(const double* p)
+LAPMESH_KERNEL_INLINE Vec load(const double* p)
 {
   Vec v;
   std::memcpy(&v, p, sizeof v);
@@ -55,13 +57,13 @@ LAPMESH_VECTOR_INLINE Vec load(const double* p)
 }
 
 template <typename Vec>
-LAPMESH_VECTOR_INLINE void store(double* p, const Vec& v)
+LAPMESH_KERNEL_INLINE void store(double* p, const Vec& v)
 {
   std::memcpy(p, &v, sizeof v);
 }
 
 template <typename Vec>
-LAPMESH_VECTOR_INLINE Vec zero()
+LAPMESH_KERNEL_INLINE Vec zero()
 {
   Vec v;
   std::memset(&v, 0, sizeof v);
@@ -72,7 +74,6 @@ LAPMESH_VECTOR_INLINE Vec zero()
 } // namespace internal
 } // namespace lapmesh
 
-#undef LAPMESH_VECTOR_INLINE
 #if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
