@@ -288,6 +288,17 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
       const Eigen::VectorXd rhs = Eigen::VectorXd::Random(mS.rows());
       const Eigen::VectorXd x = ldlt.solve(rhs);
       EXPECT_LT((shifted.selfadjointView<Eigen::Lower>() * x - rhs).norm(), 1e-8 * rhs.norm() * (1 + x.norm())) << tau;
+      // Blocks of right-hand sides through the row-wise kernels: rows padded (3, 5), one pass of 8,
+      // and more than 8 columns in blocks of 8.
+      for(int width : {2, 3, 5, 8, 11}) {
+        const Eigen::MatrixXd B = Eigen::MatrixXd::Random(mS.rows(), width);
+        const Eigen::MatrixXd X = ldlt.solve(B);
+        ASSERT_EQ(X.cols(), width);
+        for(int j = 0; j < width; ++j)
+          EXPECT_LT((shifted.selfadjointView<Eigen::Lower>() * X.col(j) - B.col(j)).norm(),
+                    1e-8 * B.col(j).norm() * (1 + X.col(j).norm()))
+            << tau << ", width " << width << ", column " << j;
+      }
       if(tau < 0) { EXPECT_EQ(ldlt.negative_pivots(), 0); }
       if(tau > 100 * lambda_scale) { EXPECT_GT(ldlt.negative_pivots(), 5); }
       // Reading the structure in the factor instead of a copy of it changes nothing, and a copy
@@ -536,6 +547,44 @@ TEST(Spectral, ShiftInvertSolvesInTheFactorsOrderEqualThoseInTheMatrixs)
   }
 }
 
+TEST(Spectral, IndefiniteSolvesInTheFactorsOrderEqualThoseInTheMatrixs)
+{
+  // The bands' shift-invert operator, with the LDL^T at a shift inside the spectrum (negative
+  // pivots: the signs applied between the kernels' two solves), in the factor's row order and
+  // in the matrix's order, permuted; and its solve against the residual.
+  for(const Shift_invert_case& c : shift_invert_cases()) {
+    const lapmesh::Laplacian_pencil& pencil = c.pencil;
+    const double sigma = 300.0 / pencil.mass.sum();
+    lapmesh::internal::Shifted_ldlt ldlt(pencil.stiffness, pencil.mass);
+    EXPECT_GT(ldlt.factorize_at(sigma), 5);
+    const int* order = lapmesh::internal::solve_order(ldlt);
+    ASSERT_NE(order, nullptr);
+    const Eigen::Index n = pencil.mass.size();
+    const Eigen::VectorXd scale = pencil.mass.cwiseSqrt();
+    Eigen::VectorXd ordered_scale(n);
+    for(Eigen::Index i = 0; i < n; ++i) ordered_scale[i] = scale[order[i]];
+    Eigen::SparseMatrix<double> K = -pencil.stiffness;
+    K.diagonal() -= sigma * pencil.mass;
+    for(int width : {1, 4, 11}) {
+      const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, width);
+      const Eigen::MatrixXd Y = scale.asDiagonal() * ldlt.solve(Eigen::MatrixXd(scale.asDiagonal() * X));
+      Eigen::MatrixXd ordered_X(n, width), ordered_Y, unused;
+      for(Eigen::Index i = 0; i < n; ++i) ordered_X.row(i) = X.row(order[i]);
+      lapmesh::internal::scaled_solve_in_solve_order(ldlt, ordered_scale, ordered_X, ordered_Y, unused);
+      ASSERT_EQ(ordered_Y.rows(), n);
+      ASSERT_EQ(ordered_Y.cols(), width);
+      double worst = 0;
+      for(Eigen::Index i = 0; i < n; ++i) worst = std::max(worst, (ordered_Y.row(i) - Y.row(order[i])).cwiseAbs().maxCoeff());
+      EXPECT_LT(worst, 1e-13 * Y.cwiseAbs().maxCoeff()) << width;
+      // K z = b with z = D^-1 Y, b = D X.
+      for(int j = 0; j < width; ++j) {
+        const Eigen::VectorXd z = scale.cwiseInverse().cwiseProduct(Y.col(j)), b = scale.cwiseProduct(X.col(j));
+        EXPECT_LT((K * z - b).norm(), 1e-8 * b.norm() * (1 + z.norm())) << width << " " << j;
+      }
+    }
+  }
+}
+
 TEST(Spectral, DeflatedRunsInTheFactorsOrderEqualThoseInTheMatrixs)
 {
   // On a mesh of several components a block Lanczos run removes the null space (the components'
@@ -626,6 +675,15 @@ TEST(Spectral, BandedAgreesWithSingleRun)
   Eigen::Index k = 120;
   while(a.splits_eigenspace(k)) --k;
   EXPECT_LT((a.reconstruct(P, k) - b.reconstruct(P, k)).cwiseAbs().maxCoeff(), 1e-7 * bbox_diagonal(P));
+  // The bands run the method the options name: Spectra's single-vector Lanczos inside them, an
+  // independent code path, to the same values.
+  lapmesh::Spectral_options spectra_bands = banded;
+  spectra_bands.method = lapmesh::Krylov_method::spectra;
+  const auto e = lapmesh::Spectral_basis::from_pencil(pencil, 120, spectra_bands);
+  ASSERT_GE(e.size(), 120);
+  EXPECT_NE(e.operations(), b.operations());
+  for(int j = 0; j < 120; ++j) EXPECT_NEAR(e.eigenvalues()[j], a.eigenvalues()[j], 1e-8 * (1 + a.eigenvalues()[j])) << j;
+  EXPECT_LT(m_orthonormality_error(e), 1e-8);
   // On the symmetric sphere too (exactly repeated eigenvalues at band edges).
   const Mesh s = to_mesh(lapmesh::icosphere(4, 1.0));
   const auto ps = lapmesh::laplacian_pencil(s);

@@ -433,7 +433,7 @@ struct Spectral_options
   int block_size = 0;              ///< block Lanczos: vectors per block; 0: 4 below 250 pairs, else 8
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
   int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
-                                   ///< by the solver past wider clusters (Spectra inside);
+                                   ///< by the solver past wider clusters (`method` inside);
                                    ///< 0: one run; -1: 40 when k >= 200 and either k > n / 56
                                    ///< or k > 1000
   double ncv_factor = 0;           ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)

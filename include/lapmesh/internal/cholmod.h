@@ -312,7 +312,7 @@ public:
     std::vector<double> by_rows(n * width, 0.0);
     for(std::size_t j = 0; j < std::size_t(cols); ++j)
       for(std::size_t i = 0; i < n; ++i) by_rows[i * width + j] = data[j * n + i];
-    supernodal_llt_solve_rows(factor_view(), by_rows.data(), width);
+    supernodal_solve_rows(factor_view(), by_rows.data(), width);
     for(std::size_t j = 0; j < std::size_t(cols); ++j)
       for(std::size_t i = 0; i < n; ++i) data[j * n + i] = by_rows[i * width + j];
     return true;
@@ -355,9 +355,10 @@ public:
   }
 
 private:
-  /// The numeric factor by lapmesh's supernodal L D L^T on CHOLMOD's structure, scaled into
-  /// CHOLMOD's factor as L D^1/2: the state CHOLMOD's own factorisation leaves (a failure at a
-  /// pivot <= 0 included, as CHOLMOD's "not positive definite").
+  /// The numeric factor by lapmesh's supernodal L D L^T on CHOLMOD's structure, written into
+  /// CHOLMOD's factor as L |D|^1/2, which is CHOLMOD's L D^1/2 when D > 0: the state CHOLMOD's
+  /// own factorisation leaves (a failure at a pivot <= 0 included, as CHOLMOD's "not positive
+  /// definite").
   void factorize_by_lapmesh(const MatrixType& A)
   {
     cholmod_factor* L = m_cholmodFactor;
@@ -372,7 +373,7 @@ private:
     const MatrixType permuted = in_given_order() ? MatrixType() : ldlt.permuted_lower(A);
     const MatrixType& lower = in_given_order() ? A : permuted;
     if(!ldlt.factorize_in(static_cast<double*>(L->x), lower, Eigen::VectorXd(), 0.0) ||
-       !ldlt.scale_to_cholesky()) {
+       !ldlt.positive_definite()) {
       L->minor = 0;  // which pivot failed matters to no caller
       return;
     }
@@ -402,27 +403,22 @@ private:
   void scaled_solve_by_rows(const RowOf& row_of, const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
                             Eigen::MatrixXd& Y) const
   {
-    const Eigen::Index n = X.rows(), nrhs = X.cols();
     // The kernels take the values of a row side by side, CHOLMOD a column-major block.
-    const bool by_rows = supernodal_kernels_fit(std::size_t(nrhs));
-    // A row may hold zero columns after the block's (supernodal_row_width()).
-    const Eigen::Index row_step = by_rows ? Eigen::Index(supernodal_row_width(std::size_t(nrhs))) : 1,
-                       column_step = by_rows ? 1 : n;
-    m_rhs.resize(std::size_t(n) * std::size_t(by_rows ? row_step : nrhs));
+    if(supernodal_kernels_fit(std::size_t(X.cols()))) {
+      supernodal_scaled_solve(factor_view(), row_of, scale.data(), X, Y, m_rhs);
+      return;
+    }
+    const Eigen::Index n = X.rows(), nrhs = X.cols();
+    m_rhs.resize(std::size_t(n) * std::size_t(nrhs));
     for(Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Index r = row_of(i);
-      for(Eigen::Index j = 0; j < nrhs; ++j) m_rhs[std::size_t(i * row_step + j * column_step)] = scale[r] * X(r, j);
-      for(Eigen::Index j = nrhs; by_rows && j < row_step; ++j) m_rhs[std::size_t(i * row_step + j)] = 0.0;
+      for(Eigen::Index j = 0; j < nrhs; ++j) m_rhs[std::size_t(i + j * n)] = scale[r] * X(r, j);
     }
-    if(by_rows) {
-      supernodal_llt_solve_rows(factor_view(), m_rhs.data(), std::size_t(row_step));
-    } else {
-      cholmod_solve_in_place(m_rhs.data(), n, nrhs);
-    }
+    cholmod_solve_in_place(m_rhs.data(), n, nrhs);
     Y.resize(n, nrhs);
     for(Eigen::Index i = 0; i < n; ++i) {
       const Eigen::Index r = row_of(i);
-      for(Eigen::Index j = 0; j < nrhs; ++j) Y(r, j) = scale[r] * m_rhs[std::size_t(i * row_step + j * column_step)];
+      for(Eigen::Index j = 0; j < nrhs; ++j) Y(r, j) = scale[r] * m_rhs[std::size_t(i + j * n)];
     }
   }
 

@@ -347,6 +347,14 @@ public:
   {
     return m_ldlt.solve(b);
   }
+  /// The fill-reducing ordering: row i of the factor is row order()[i] of the matrix.
+  const int* order() const { return m_ldlt.matrix_rows(); }
+  /// Y = D K^-1 D X, D = diag(scale), for X, Y and scale in order().
+  void scaled_solve_in_factor_order(const Eigen::VectorXd& scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                                    Eigen::MatrixXd& Y) const
+  {
+    m_ldlt.scaled_solve_by_rows([](Eigen::Index i) { return i; }, scale.data(), X, Y);
+  }
 
 private:
   Supernodal_ldlt m_ldlt;
@@ -761,6 +769,12 @@ public:
 #endif
   }
 
+#ifdef LAPMESH_HAS_CHOLMOD
+  /// The supernodal factor's ordering and its solves in that order (the block Krylov runs'),
+  /// with the last factorisation.
+  const Shifted_supernodal_ldlt& supernodal() const { return *m_ldlt; }
+#endif
+
 private:
 #ifdef LAPMESH_HAS_CHOLMOD
   std::optional<Shifted_supernodal_ldlt> m_ldlt;
@@ -771,6 +785,15 @@ private:
   bool m_analysed = false;
 #endif
 };
+
+#ifdef LAPMESH_HAS_CHOLMOD
+inline const int* solve_order(const Shifted_ldlt& factor) { return factor.supernodal().order(); }
+inline void scaled_solve_in_solve_order(const Shifted_ldlt& factor, const Eigen::VectorXd& scale,
+                                        const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y, Eigen::MatrixXd&)
+{
+  factor.supernodal().scaled_solve_in_factor_order(scale, X, Y);
+}
+#endif
 
 /// The vectors of a new band, held[cut, end), and of the bands held before it are M-orthogonal
 /// only to about the Krylov tolerance times the distance of a value from its band's shift over its
@@ -822,7 +845,7 @@ constexpr double held_residual = 1e-8;
 
 /// Spectrum slicing ("bands", as in Vallet & Levy's manifold harmonics): shift-invert Lanczos
 /// around successive shifts sigma_0 < sigma_1 < ..., each for about band_size pairs, so that the
-/// Krylov space stays small (Spectra's dense work grows with the square of its size). Each
+/// Krylov space stays small (a run's dense work grows with the square of its size). Each
 /// shift's LDL^T factorisation (one symbolic analysis for all) also gives, by Sylvester's law,
 /// the exact number of eigenvalues below it: every band is checked against it, so a dropped
 /// or duplicated pair is detected, never returned.
@@ -1302,7 +1325,6 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   {
     Spectral_options o = opt;
     o.band_size = band_size;
-    o.method = Krylov_method::spectra;  // interior shifts: tuned and tested with Spectra
     return banded_eigenpairs(stiffness, mass, k, o);
   }
   if(opt.cholesky == Sparse_cholesky::cholmod) {

@@ -12,6 +12,11 @@
 // analysis (the fill-reducing ordering, the supernodes and their row patterns), with the updates
 // from descendant supernodes and inside a supernode done as dense matrix products.
 //
+// The factor is held as L |D|^1/2 with the signs of D, in the layout of a CHOLMOD supernodal
+// L L^T (which it is when D > 0): the row-wise kernels of internal/supernodal_solve.h solve with
+// it, the signs applied between their two triangular solves (Eigen's dense products, one
+// supernode at a time, were the largest part of a run of block Lanczos in spectrum slices).
+//
 // Pivots are taken in the order of the analysis, as in any sparse LDL^T without pivoting (the
 // simplicial ones included): a zero pivot makes factorize() fail, a tiny one is accepted. The
 // callers place tau in a spectral gap, where the matrix is far from singular.
@@ -21,6 +26,7 @@
 #ifdef LAPMESH_HAS_CHOLMOD
 
 #include <lapmesh/internal/dense_products.h>
+#include <lapmesh/internal/supernodal_solve.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -126,6 +132,7 @@ public:
     m_values = storage;
     std::fill(m_values, m_values + m_values_size, 0.0);
     m_pivots.setZero(m_n);
+    m_signs.resize(m_n);
     m_position.assign(std::size_t(m_n), 0);
     m_head.assign(nsuper, -1);
     m_next.assign(nsuper, -1);
@@ -154,6 +161,7 @@ public:
       m_progress[s] = ncol;
       queue(s);
     }
+    scale_by_root_pivots();
     return true;
   }
 
@@ -161,50 +169,40 @@ public:
   template <typename Rhs>
   Eigen::Matrix<double, Eigen::Dynamic, Rhs::ColsAtCompileTime> solve(const Rhs& b) const
   {
-    const std::size_t nsuper = m_nsuper;
-    m_rhs = m_perm * b;
-    for(std::size_t s = 0; s < nsuper; ++s) {  // L y = P b
-      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
-      const Const_block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
-      auto y = m_rhs.middleRows(k1, ncol);
-      X.topRows(ncol).triangularView<Eigen::UnitLower>().solveInPlace(y);
-      if(nrow == ncol) continue;
-      m_below.noalias() = X.bottomRows(nrow - ncol) * y;
-      const int* below_rows = m_rows + m_pi[s] + ncol;
-      for(int i = 0; i < nrow - ncol; ++i) m_rhs.row(below_rows[i]) -= m_below.row(i);
-    }
-    m_rhs = m_pivots.cwiseInverse().asDiagonal() * m_rhs;
-    for(std::size_t s = nsuper; s-- > 0;) {  // L^T x = D^-1 y
-      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
-      const Const_block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
-      auto x = m_rhs.middleRows(k1, ncol);
-      if(nrow > ncol) {
-        const int* below_rows = m_rows + m_pi[s] + ncol;
-        m_below.resize(nrow - ncol, m_rhs.cols());
-        for(int i = 0; i < nrow - ncol; ++i) m_below.row(i) = m_rhs.row(below_rows[i]);
-        x.noalias() -= X.bottomRows(nrow - ncol).transpose() * m_below;
-      }
-      X.topRows(ncol).transpose().triangularView<Eigen::UnitUpper>().solveInPlace(x);
-    }
-    return m_perm.transpose() * m_rhs;
+    Eigen::MatrixXd x;
+    scaled_solve_by_rows([this](Eigen::Index i) { return Eigen::Index(m_matrix_row[i]); }, nullptr, b, x);
+    return x;
   }
 
-  /// Turns the last factorisation, L D L^T with D > 0, into the Cholesky factor L D^1/2 in place
-  /// (the layout of a CHOLMOD supernodal L L^T). False, with nothing changed, if a pivot is <= 0.
-  bool scale_to_cholesky()
+  /// Y = D K^-1 D X, K = B - shift diag(d), D = diag(scale) (nullptr: the identity): row i of the
+  /// factor's system is row row_of(i) of X, Y and scale.
+  template <typename RowOf>
+  void scaled_solve_by_rows(const RowOf& row_of, const double* scale, const Eigen::Ref<const Eigen::MatrixXd>& X,
+                            Eigen::MatrixXd& Y) const
   {
-    if(!(m_pivots.array() > 0).all()) return false;
-    for(std::size_t s = 0; s < m_nsuper; ++s) {
-      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
-      Block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
-      for(int c = 0; c < ncol; ++c) {
-        const double root = std::sqrt(m_pivots[k1 + c]);
-        X(c, c) = root;  // the unit diagonal of L, which holds the pivot
-        X.col(c).tail(nrow - c - 1) *= root;
-      }
-    }
-    return true;
+    supernodal_scaled_solve(factor_view(), row_of, scale, X, Y, m_solve_rows);
   }
+
+  /// The last factorisation's supernodes, values (L |D|^1/2) and signs, for the supernodal kernels.
+  Supernodal_factor_view factor_view() const
+  {
+    Supernodal_factor_view view;
+    view.super = m_super;
+    view.pi = m_pi;
+    view.px = m_px;
+    view.rows = m_rows;
+    view.nsuper = m_nsuper;
+    view.values = m_values;
+    view.signs = m_signs.data();
+    return view;
+  }
+
+  /// The row of the matrix at each row of the factor (the fill-reducing ordering).
+  const int* matrix_rows() const { return m_matrix_row; }
+
+  /// Whether every pivot of the last factorisation is positive: its values are then the
+  /// Cholesky factor L D^1/2 (the layout of a CHOLMOD supernodal L L^T).
+  bool positive_definite() const { return (m_pivots.array() > 0).all(); }
 
   /// The diagonal D of the last factorisation, in the permuted numbering.
   const Eigen::VectorXd& pivots() const { return m_pivots; }
@@ -213,7 +211,23 @@ public:
 
 private:
   using Block = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
-  using Const_block = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+
+  /// L to L |D|^1/2, D's signs set aside: the form the solves take. After the whole
+  /// factorisation rather than supernode by supernode, so that the updates, and with them the
+  /// pivots and the Cholesky factor of a positive definite matrix, are those of L D L^T.
+  void scale_by_root_pivots()
+  {
+    for(std::size_t s = 0; s < m_nsuper; ++s) {
+      const int k1 = m_super[s], ncol = m_super[s + 1] - k1, nrow = m_pi[s + 1] - m_pi[s];
+      Block X(m_values + m_px[s], nrow, ncol, Eigen::OuterStride<>(nrow));
+      for(int c = 0; c < ncol; ++c) {
+        const double pivot = m_pivots[k1 + c], root = std::sqrt(std::abs(pivot));
+        m_signs[k1 + c] = pivot > 0 ? 1.0 : -1.0;
+        X(c, c) = root;  // the unit diagonal of L, which held the pivot
+        X.col(c).tail(nrow - c - 1) *= root;
+      }
+    }
+  }
 
   /// Queues supernode d on the supernode that holds its first row not yet used, if any.
   void queue(std::size_t d)
@@ -308,6 +322,7 @@ private:
   std::vector<double> m_own_values;
   double* m_values = nullptr;  // the last factorisation's values
   Eigen::VectorXd m_pivots;
+  Eigen::VectorXd m_signs;  // of the pivots, +1 or -1
   Permutation m_perm;
   // Work space of factorize().
   std::vector<int> m_position, m_head, m_next, m_progress;
@@ -315,7 +330,7 @@ private:
   // update, are not allocated and freed thousands of times, which fragments the heap and leaves
   // a large factorisation's process tens of MiB above its live memory.
   std::vector<double> m_scaled, m_update;
-  mutable Eigen::MatrixXd m_rhs, m_below;  // solve()'s
+  mutable std::vector<double> m_solve_rows;  // the solves' right-hand sides, row by row
 };
 
 } // namespace internal

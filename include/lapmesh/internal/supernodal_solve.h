@@ -1,5 +1,6 @@
-// lapmesh — the two triangular solves with a supernodal Cholesky factor L (L L^T X = B), on a
-// block of right-hand sides stored row by row (the values of one row of X side by side).
+// lapmesh — the two triangular solves with a supernodal factor L (L L^T X = B, or L S L^T X = B
+// for an L D L^T held as L |D|^1/2 and the signs S of D), on a block of right-hand sides stored
+// row by row (the values of one row of X side by side).
 //
 // Why not CHOLMOD's own solves. The factors of surface meshes have many small supernodes (a few
 // columns each), and a block Krylov method solves with a handful of right-hand sides. CHOLMOD
@@ -16,8 +17,12 @@
 #include <lapmesh/internal/cpu_features.h>
 #include <lapmesh/internal/vector_registers.h>
 
+#include <Eigen/Core>
+
+#include <algorithm>
 #include <cassert>
 #include <cstddef>
+#include <vector>
 
 // The baseline build of the kernels passes 32-byte vectors between inlined helpers, for which
 // GCC and Clang note that the ABI differs with AVX: nothing crosses a call boundary.
@@ -36,7 +41,8 @@ namespace internal {
 /// The structure and values of a supernodal factor in CHOLMOD's layout: supernode s holds the
 /// columns super[s] .. super[s+1]-1, its row indices are rows[pi[s] .. pi[s+1]) (the first ones
 /// are its own columns), its values the column-major block at values + px[s] (leading dimension:
-/// its number of rows).
+/// its number of rows). `signs` (one per column, +1 or -1) makes it the factor L |D|^1/2 of an
+/// indefinite L D L^T = L |D|^1/2 S |D|^1/2 L^T, S = diag(signs); nullptr: a Cholesky factor.
 struct Supernodal_factor_view
 {
   const int* super = nullptr;
@@ -45,6 +51,7 @@ struct Supernodal_factor_view
   const int* rows = nullptr;
   std::size_t nsuper = 0;
   const double* values = nullptr;
+  const double* signs = nullptr;
 };
 
 namespace supernodal_kernels {
@@ -178,10 +185,20 @@ LAPMESH_KERNEL_INLINE void backward(const Supernodal_factor_view& L, double* X)
   }
 }
 
+// X = S X between the two triangular solves of an indefinite factor.
+template <int W, int Stride>
+LAPMESH_KERNEL_INLINE void apply_signs(const Supernodal_factor_view& L, double* X)
+{
+  using R = typename Row_type<W>::type;
+  const std::size_t n = std::size_t(L.super[L.nsuper]);
+  for(std::size_t i = 0; i < n; ++i) store<R>(X + i * Stride, L.signs[i] * load<R>(X + i * Stride));
+}
+
 template <int W, int Stride>
 LAPMESH_KERNEL_INLINE void solve_pass(const Supernodal_factor_view& L, double* X)
 {
   forward<W, Stride>(L, X);
+  if(L.signs) apply_signs<W, Stride>(L, X);
   backward<W, Stride>(L, X);
 }
 
@@ -207,6 +224,7 @@ LAPMESH_KERNEL_INLINE void solve_passes(const Supernodal_factor_view& L, double*
 LAPMESH_KERNEL_INLINE void solve_all(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
   switch(width) {
+    case 1: solve_passes<1>(L, X); return;
     case 2: solve_passes<2>(L, X); return;
     case 4: solve_passes<4>(L, X); return;
     case 5: solve_passes<5>(L, X); return;
@@ -239,10 +257,10 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) inline void solve_avx512(co
 
 } // namespace supernodal_kernels
 
-/// Whether supernodal_llt_solve_rows() takes a block of `width` right-hand sides. A single vector
-/// is memory bound either way (CHOLMOD's solve was as fast, or faster on a factor read from
-/// memory); beyond 8, the BLAS products of CHOLMOD's supernodal solves are large enough to pay
-/// for their overhead.
+/// Whether a block of `width` right-hand sides goes through these kernels rather than CHOLMOD's
+/// solves, with a Cholesky factor that CHOLMOD can solve. A single vector is memory bound either
+/// way (CHOLMOD's solve was as fast, or faster on a factor read from memory); beyond 8, the BLAS
+/// products of CHOLMOD's supernodal solves are large enough to pay for their overhead.
 inline bool supernodal_kernels_fit(std::size_t width) { return width >= 2 && width <= 8; }
 
 /// Whether the build of the solve that this CPU runs takes a row of 8 right-hand sides in one
@@ -256,8 +274,7 @@ inline bool supernodal_rows_of_eight_in_one_pass()
 #endif
 }
 
-/// How many values a row of the kernels' block holds for `width` right-hand sides
-/// (supernodal_kernels_fit(width)): 3 and 7 are solved as 4 and 8 with zero columns, which is
+/// How many values a row of the kernels' block holds for `width` right-hand sides (1 to 8): 3 and 7 are solved as 4 and 8 with zero columns, which is
 /// faster than their passes of 2 + 1 and 4 + 2 + 1 columns; where 8 columns take one pass
 /// (supernodal_rows_of_eight_in_one_pass()), 5 and 6 are solved as 8 as well, instead of in
 /// passes of 4 + 1 and 4 + 2 (doc/spectral.md). A column's arithmetic is the same in either
@@ -269,10 +286,10 @@ inline std::size_t supernodal_row_width(std::size_t width)
   return width;
 }
 
-/// Solves L L^T X = B in place: X holds `width` columns row by row (row i at X + i * width), in
-/// the factor's (permuted) numbering; `width` is the supernodal_row_width() of B's columns
-/// (supernodal_kernels_fit()), the columns past B's being zero.
-inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
+/// Solves L L^T X = B (L S L^T X = B with the view's signs) in place: X holds `width` columns row
+/// by row (row i at X + i * width), in the factor's (permuted) numbering; `width` is the
+/// supernodal_row_width() of B's columns (1 to 8), the columns past B's being zero.
+inline void supernodal_solve_rows(const Supernodal_factor_view& L, double* X, std::size_t width)
 {
 #ifdef LAPMESH_SUPERNODAL_SOLVE_AVX2
   if(supernodal_rows_of_eight_in_one_pass()) {
@@ -285,6 +302,37 @@ inline void supernodal_llt_solve_rows(const Supernodal_factor_view& L, double* X
   }
 #endif
   supernodal_kernels::solve_baseline(L, X, width);
+}
+
+/// Y = D K^-1 D X for K = L L^T (or L S L^T), D = diag(scale) (nullptr: the identity), in blocks
+/// of at most 8 columns: row i of the factor's system is row row_of(i) of X, Y and scale,
+/// gathered into `rows` (kept between calls by the caller) and scattered back.
+template <typename RowOf>
+void supernodal_scaled_solve(const Supernodal_factor_view& L, const RowOf& row_of, const double* scale,
+                             const Eigen::Ref<const Eigen::MatrixXd>& X, Eigen::MatrixXd& Y, std::vector<double>& rows)
+{
+  const Eigen::Index n = X.rows(), cols = X.cols();
+  Y.resize(n, cols);
+  for(Eigen::Index first = 0; first < cols; first += 8) {
+    const Eigen::Index count = std::min<Eigen::Index>(8, cols - first);
+    // A row may hold zero columns after the block's (supernodal_row_width()).
+    const std::size_t width = supernodal_row_width(std::size_t(count));
+    rows.resize(std::size_t(n) * width);
+    for(Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index r = row_of(i);
+      const double d = scale ? scale[r] : 1.0;
+      double* row = rows.data() + std::size_t(i) * width;
+      for(Eigen::Index j = 0; j < count; ++j) row[j] = d * X(r, first + j);
+      for(std::size_t j = std::size_t(count); j < width; ++j) row[j] = 0.0;
+    }
+    supernodal_solve_rows(L, rows.data(), width);
+    for(Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index r = row_of(i);
+      const double d = scale ? scale[r] : 1.0;
+      const double* row = rows.data() + std::size_t(i) * width;
+      for(Eigen::Index j = 0; j < count; ++j) Y(r, first + j) = d * row[j];
+    }
+  }
 }
 
 } // namespace internal
