@@ -1048,9 +1048,9 @@ TEST(Spectral, DocumentedLimitOnIcosphere) { expect_documented_limit(lapmesh::ic
 
 TEST(Spectral, DocumentedLimitOnBumpySphere) { expect_documented_limit(lapmesh::bumpy_sphere(4), "bumpy sphere"); }
 
-// From k = 200 the default is one block Lanczos run while k <= n / 56 (and k <= 1000), bands of
-// 40 above. k = 200 on a torus of 12 000 vertices (exact multiplicities 2 and 4) takes the single
-// run, and its spectrum is verified and equals the bands'; on one of 10 000 vertices it takes
+// From k = 200 the default is one block Lanczos run while k <= n / 120 (and k <= 1000), bands of
+// 40 above. k = 200 on a torus of 24 000 vertices (exact multiplicities 2 and 4) takes the single
+// run, and its spectrum is verified and equals the bands'; on one of 22 500 vertices it takes
 // the bands.
 TEST(Spectral, LargeKTakesOneRunOnALargeEnoughMesh)
 {
@@ -1058,8 +1058,8 @@ TEST(Spectral, LargeKTakesOneRunOnALargeEnoughMesh)
   lapmesh::Spectral_options single, banded;
   single.band_size = 0;
   banded.band_size = 40;
-  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(120, 100, 1.0, 0.3)));
-  ASSERT_EQ(pencil.mass.size(), 12000);
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(160, 150, 1.0, 0.3)));
+  ASSERT_EQ(pencil.mass.size(), 24000);
   const auto by_default = lapmesh::Spectral_basis::from_pencil(pencil, k);
   const auto one_run = lapmesh::Spectral_basis::from_pencil(pencil, k, single);
   const auto bands = lapmesh::Spectral_basis::from_pencil(pencil, k, banded);
@@ -1069,8 +1069,8 @@ TEST(Spectral, LargeKTakesOneRunOnALargeEnoughMesh)
   for(Eigen::Index j = 0; j < k; ++j)
     EXPECT_NEAR(by_default.eigenvalues()[j], bands.eigenvalues()[j], 1e-8 * (1 + bands.eigenvalues()[j])) << j;
 
-  const auto smaller = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(100, 100, 1.0, 0.3)));
-  ASSERT_EQ(smaller.mass.size(), 10000);
+  const auto smaller = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(150, 150, 1.0, 0.3)));
+  ASSERT_EQ(smaller.mass.size(), 22500);
   EXPECT_EQ(lapmesh::Spectral_basis::from_pencil(smaller, k).operations(),
             lapmesh::Spectral_basis::from_pencil(smaller, k, banded).operations());
 }
