@@ -882,6 +882,60 @@ TEST(Spectral, AValueRepeatedMoreOftenThanARunHoldsIsSplitWhereItMustBe)
     }
 }
 
+TEST(Spectral, ARunThatStallsIsRetriedWithALargerBlock)
+{
+  // 20 identical spheres of 42 vertices: 60 copies of l = 1, then 100 of l = 2, where k = 85
+  // falls. Built with -O2 for generic x86-64, the run with blocks of 4 converged the 60 and then
+  // no further pair until the 1000 restarts allowed ran out ("60 of 73 eigenpairs converged");
+  // blocks of 8 find the copies. Whether it stalls depends on the rounding: the spectrum must be
+  // verified either way.
+  lapmesh::Triangle_soup soup;
+  const lapmesh::Triangle_soup part = lapmesh::icosphere(1, 1.0);
+  for(int copy = 0; copy < 20; ++copy) {
+    const int off = int(soup.points.size());
+    for(auto p : part.points) soup.points.push_back({p[0] + 3.0 * copy, p[1], p[2]});
+    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
+  }
+  const auto spheres = lapmesh::laplacian_pencil(to_mesh(soup));
+  const Eigen::VectorXd exact = dense_eigenvalues(spheres);
+  ASSERT_LT(exact[179] - exact[80], 1e-10 * exact[80]);  // 100 copies of one value
+  const auto computed = basis_or_failure(spheres, 85, lapmesh::Spectral_options(), "20 spheres k=85");
+  ASSERT_TRUE(computed);
+  ASSERT_GE(computed->size(), 85);
+  expect_pairs_match(spheres, *computed, exact, exact[20], "20 spheres k=85");
+
+  // The mechanism, made certain by a tolerance that no pair meets: block Lanczos ends a run that
+  // converges no further pair in stall_restarts restarts in a row, long before max_restarts ...
+  const Eigen::Index n = 400;
+  const Eigen::VectorXd d = Eigen::VectorXd::LinSpaced(n, 1.0, 2.0);
+  auto apply = [&](const Eigen::MatrixXd& X, Eigen::MatrixXd& Y) { Y = d.asDiagonal() * X; };
+  lapmesh::internal::Block_lanczos_options opt;
+  opt.block_size = 4;
+  opt.tolerance = 1e-300;
+  opt.stall_restarts = 5;
+  const auto stalled = lapmesh::internal::block_lanczos_largest(n, 12, apply, opt);
+  EXPECT_TRUE(stalled.stalled);
+  EXPECT_FALSE(stalled.converged);
+  EXPECT_EQ(stalled.restarts, 5);
+  EXPECT_EQ(stalled.values.size(), 12);
+  // ... and the solver runs it again with twice the block, up to its four attempts (blocks of 4,
+  // 8, 16 and 32), or not at all when the caller fixed the block size.
+  const auto sphere = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(3, 1.0)));
+  for(const int block : {0, 4}) {
+    lapmesh::Spectral_options never;
+    never.tolerance = 1e-300;
+    never.block_size = block;
+    try {
+      lapmesh::Spectral_basis::from_pencil(sphere, 10, never);
+      ADD_FAILURE() << "no pair can converge";
+    } catch(const lapmesh::Numerical_error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("none more in the last"), std::string::npos) << what;
+      EXPECT_NE(what.find(block == 0 ? "blocks of 32" : "blocks of 4"), std::string::npos) << what;
+    }
+  }
+}
+
 TEST(Spectral, PartsOfFewDistinctValuesGiveNoNullVectorsAsPairs)
 {
   // 100 identical triangles apart (a triangle soup): lambda = 0 a hundred times, then each of a

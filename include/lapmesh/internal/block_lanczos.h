@@ -213,6 +213,10 @@ struct Block_lanczos_options
   /// number of restarts so far: true ends the run unconverged (a caller that sees the run will
   /// not converge in reasonable time and knows a better operator).
   std::function<bool(const Eigen::VectorXd& theta, int restart)> give_up;
+  /// > 0: the run ends unconverged (`stalled` in the result) after this many restarts in a row
+  /// that converged no further wanted pair (a value repeated more often than the Krylov space of
+  /// a block holds it: a larger block finds the copies).
+  int stall_restarts = 0;
 };
 
 struct Block_lanczos_result
@@ -222,8 +226,10 @@ struct Block_lanczos_result
   long long operations = 0;  ///< operator applications (vectors, not blocks)
   int restarts = 0;
   int rayleigh_ritz = 0;     ///< projected eigenproblems solved (convergence checks)
-  bool converged = true;     ///< false: given up (options' give_up); `values` are then the last
-                             ///< Ritz values and `vectors` is empty
+  bool converged = true;     ///< false: given up (options' give_up or stall_restarts); `values`
+                             ///< are then the last Ritz values and `vectors` is empty
+  bool stalled = false;      ///< given up by the options' stall_restarts
+  Eigen::Index converged_pairs = 0;  ///< wanted pairs converged when the run ended
 };
 
 /// The nev largest eigenpairs of the symmetric operator `apply(X, Y)`: Y = A X, X a block of
@@ -343,6 +349,8 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
   // The convergence checks' schedule (see the top of the file), in operator applications.
   long long next_check = 0, last_check = 0;
   Index last_settled = -1;
+  Index most_settled = -1;  // the most wanted pairs converged at a check, and the restart it came in
+  int progress_restart = 0;
   for(int restart = 0;; ++restart) {
     while(filled <= m_max) {
       const Index cur = processed;
@@ -424,7 +432,19 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         next_check = std::numeric_limits<long long>::max();
       last_settled = settled;
       last_check = out.operations;
+      if(settled > most_settled) {
+        most_settled = settled;
+        progress_restart = restart;
+      }
       if(basis_full) {  // thick restart
+        if(opt.stall_restarts > 0 && restart - progress_restart >= opt.stall_restarts) {
+          out.values = theta.head(nev);
+          out.restarts = restart;
+          out.converged = false;
+          out.stalled = true;
+          out.converged_pairs = converged;
+          return out;
+        }
         if(opt.give_up && opt.give_up(theta.head(nev), restart)) {
           out.values = theta.head(nev);
           out.restarts = restart;

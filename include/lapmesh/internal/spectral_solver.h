@@ -578,12 +578,27 @@ inline bool crowded_far_from_shift(const Eigen::VectorXd& lambda, double sigma, 
   return first < last && distance > 0 && lambda[last] - lambda[first] < crowding * distance;
 }
 
+/// A block Lanczos run that converged no further wanted pair in stall_restarts restarts in a row
+/// (Block_lanczos_options): the caller may retry with a larger block.
+class Stalled_run : public Numerical_error
+{
+public:
+  Stalled_run(const std::string& what, long long operations) : Numerical_error(what), operations(operations) {}
+  long long operations;  ///< the run's
+};
+
+/// The restarts without progress after which a run of verified_runs() is retried with a larger
+/// block: a value repeated more often than a block's Krylov space holds it had runs of 20
+/// identical parts reach the 1000 restarts allowed (doc/spectral.md).
+constexpr int stalled_run_restarts = 100;
+
 /// One block Lanczos run for m pairs with the factor of K = -S - sigma M. With a `watch`, a run
-/// that it gives up returns no pairs (and the watch's estimates).
+/// that it gives up returns no pairs (and the watch's estimates). With `stall_restarts` > 0, a run
+/// that stalls that long throws Stalled_run.
 template <typename Factor>
 Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
                                  const Spectral_options& opt, const std::function<void(long long)>& on_op,
-                                 Crowding_watch* watch = nullptr)
+                                 Crowding_watch* watch = nullptr, int stall_restarts = 0)
 {
   const Eigen::Index n = sqrt_mass.size();
   Block_lanczos_options bo;
@@ -593,6 +608,7 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   const double basis_factor = opt.ncv_factor > 0 ? opt.ncv_factor : default_basis_factor(m);
   bo.max_basis = std::max<Eigen::Index>(Eigen::Index(basis_factor * double(m)), m + 6 * bo.block_size);
   bo.by_magnitude = true;  // sigma inside the spectrum (bands): theta of both signs
+  bo.stall_restarts = stall_restarts;
   // theta = 1 / (lambda - sigma): the eigenvalues nearest to sigma.
   const auto ascending_lambda = [sigma](const Eigen::VectorXd& theta) {
     Eigen::VectorXd lambda = (1.0 / theta.array() + sigma).matrix();
@@ -634,6 +650,11 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
     }
   };
   Block_lanczos_result r = block_lanczos_largest(n, m, apply, bo, on_op);
+  if(r.stalled)
+    throw Stalled_run("block Lanczos: " + std::to_string(r.converged_pairs) + " of " + std::to_string(m) +
+                        " eigenpairs converged, none more in the last " + std::to_string(stall_restarts) +
+                        " restarts (blocks of " + std::to_string(bo.block_size) + ")",
+                      r.operations);
   if(!r.converged) {
     watch->estimates = ascending_lambda(r.values);
     Spectral_pairs none;
@@ -655,14 +676,15 @@ Spectral_pairs block_lanczos_run(const Factor& factor, const Eigen::VectorXd& sq
   return out;
 }
 
-/// One Krylov run for m pairs, by the method the options name (a `watch` is for block Lanczos).
+/// One Krylov run for m pairs, by the method the options name (a `watch` and `stall_restarts` are
+/// for block Lanczos).
 template <typename Factor>
 Spectral_pairs lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mass, double sigma, Eigen::Index m,
                            const Spectral_options& opt, const std::function<void(long long)>& on_op,
-                           Crowding_watch* watch = nullptr)
+                           Crowding_watch* watch = nullptr, int stall_restarts = 0)
 {
   if(opt.method == Krylov_method::spectra) return spectra_run(factor, sqrt_mass, sigma, m, opt, on_op);
-  return block_lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op, watch);
+  return block_lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op, watch, stall_restarts);
 }
 
 /// The end of the cluster of lambda_{k-1}: the first j >= k-1 with a relative gap to
@@ -1087,7 +1109,16 @@ Spectral_pairs verified_runs(Eigen::Index n, Eigen::Index k, Eigen::Index c, Eig
       block = std::max(block, default_block_size(m));
       run_opt.block_size = int(block);
     }
-    Spectral_pairs pairs = run(m, run_opt, spent);
+    Spectral_pairs pairs;
+    try {
+      pairs = run(m, run_opt, spent);
+    } catch(const Stalled_run& stalled) {
+      // Copies of a repeated value beyond what the block finds: a larger block.
+      if(opt.block_size > 0 || attempt >= 4) throw Numerical_error(stalled.what());
+      spent += stalled.operations;
+      block *= 2;
+      continue;
+    }
     spent += pairs.operations;
     pairs.operations = spent;
     pairs.attempts = attempt;
@@ -1172,8 +1203,9 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
     }
     Crowding_watch watch;
     Crowding_watch* watching = attempt == 1 && crowded ? &watch : nullptr;
-    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, watching)
-                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op, watching);
+    constexpr int stall = stalled_run_restarts;
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, watching, stall)
+                                 : lanczos_run(factor, sqrt_mass, sigma, m, run_opt, on_op, watching, stall);
     if(watch.estimates.size() > 0)
       *crowded = std::move(watch.estimates);  // given up: no pairs
     else if(c > 0)
@@ -1278,8 +1310,9 @@ inline std::optional<Spectral_pairs> reshifted_eigenpairs(const Eigen::SparseMat
   const auto run = [&](Eigen::Index m, const Spectral_options& run_opt, long long spent) {
     run_start = spent;
     ldlt.factorize_at(sigma);  // again: the counts overwrite it
-    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op)
-                                 : lanczos_run(ldlt, sqrt_mass, sigma, m, run_opt, on_op);
+    constexpr int stall = stalled_run_restarts;
+    Spectral_pairs pairs = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, m, run_opt, on_op, nullptr, stall)
+                                 : lanczos_run(ldlt, sqrt_mass, sigma, m, run_opt, on_op, nullptr, stall);
     if(c > 0) null_space.prepend_null_space(pairs, mass);
     return pairs;
   };
