@@ -849,6 +849,21 @@ TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
   }
 }
 
+namespace {
+/// `copies` icospheres of 42 vertices side by side: every value of one sphere repeated `copies` times.
+lapmesh::Triangle_soup identical_spheres(int copies)
+{
+  lapmesh::Triangle_soup soup;
+  const lapmesh::Triangle_soup part = lapmesh::icosphere(1, 1.0);
+  for(int copy = 0; copy < copies; ++copy) {
+    const int off = int(soup.points.size());
+    for(auto p : part.points) soup.points.push_back({p[0] + 3.0 * copy, p[1], p[2]});
+    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
+  }
+  return soup;
+}
+} // namespace
+
 TEST(Spectral, AValueRepeatedMoreOftenThanARunHoldsIsSplitWhereItMustBe)
 {
   // 30 identical spheres: lambda = 0 thirty times, then each of a sphere's values thirty times
@@ -856,14 +871,7 @@ TEST(Spectral, AValueRepeatedMoreOftenThanARunHoldsIsSplitWhereItMustBe)
   // (in exact arithmetic), and the single run gave up after four attempts with blocks of 4. k = 35
   // and k = 150 fall inside such eigenspaces, k = 120 at the end of one. Spectra's Lanczos, one
   // vector at a time, is not asked: it finds more copies only through round-off.
-  lapmesh::Triangle_soup soup;
-  const lapmesh::Triangle_soup part = lapmesh::icosphere(1, 1.0);
-  for(int copy = 0; copy < 30; ++copy) {
-    const int off = int(soup.points.size());
-    for(auto p : part.points) soup.points.push_back({p[0] + 3.0 * copy, p[1], p[2]});
-    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
-  }
-  const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(identical_spheres(30)));
   const Eigen::Index n = pencil.mass.size();
   ASSERT_EQ(n, 30 * 42);
   const Eigen::VectorXd exact = dense_eigenvalues(pencil);
@@ -889,14 +897,7 @@ TEST(Spectral, ARunThatStallsIsRetriedWithALargerBlock)
   // no further pair until the 1000 restarts allowed ran out ("60 of 73 eigenpairs converged");
   // blocks of 8 find the copies. Whether it stalls depends on the rounding: the spectrum must be
   // verified either way.
-  lapmesh::Triangle_soup soup;
-  const lapmesh::Triangle_soup part = lapmesh::icosphere(1, 1.0);
-  for(int copy = 0; copy < 20; ++copy) {
-    const int off = int(soup.points.size());
-    for(auto p : part.points) soup.points.push_back({p[0] + 3.0 * copy, p[1], p[2]});
-    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
-  }
-  const auto spheres = lapmesh::laplacian_pencil(to_mesh(soup));
+  const auto spheres = lapmesh::laplacian_pencil(to_mesh(identical_spheres(20)));
   const Eigen::VectorXd exact = dense_eigenvalues(spheres);
   ASSERT_LT(exact[179] - exact[80], 1e-10 * exact[80]);  // 100 copies of one value
   const auto computed = basis_or_failure(spheres, 85, lapmesh::Spectral_options(), "20 spheres k=85");
