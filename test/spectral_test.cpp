@@ -766,6 +766,26 @@ TEST(Spectral, HighMultiplicitiesAgreeWithDenseSolve)
   }
 }
 
+TEST(Spectral, ClusteredSpectrumBandsHoldWholeClusters)
+{
+  // Once a band has seen a cluster of 8 or more values, each window is the exact set of values
+  // in [u, edge), edge in a gap found by inertia, so no run has to tell apart the values of a
+  // cluster cut by its window's edge. On an icosphere of 10 242 vertices at k = 300 (clusters of
+  // up to 35 values), against one run: the same values, and the bands need fewer than 8 solves
+  // per pair (windows whose edges fell inside clusters needed more).
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(5, 1.0)));
+  const Eigen::Index k = 300;
+  lapmesh::Spectral_options banded, one_run;
+  banded.band_size = 40;
+  one_run.band_size = 0;
+  const auto bands = lapmesh::Spectral_basis::from_pencil(pencil, k, banded);
+  const auto reference = lapmesh::Spectral_basis::from_pencil(pencil, k, one_run);
+  expect_verified_spectrum(pencil, bands, k, "bands");
+  for(Eigen::Index j = 0; j < k; ++j)
+    EXPECT_NEAR(bands.eigenvalues()[j], reference.eigenvalues()[j], 1e-9 * (1 + reference.eigenvalues()[j])) << j;
+  EXPECT_LT(bands.operations(), 8 * k);
+}
+
 namespace {
 
 // k at the documented limit (2000) with the default options, on the viewer's built-in

@@ -882,6 +882,8 @@ constexpr double held_residual = 1e-8;
 /// that fails the inertia count (a missed copy of a repeated value), is widened. Values that
 /// crowd far above the last cut, across a gap that the counts show empty, raise the accepted
 /// range to just below them, so that the next shift lies next to them and not in the gap.
+/// Once a band has held a cluster, windows are exact: the values in [u, edge), edge in a gap
+/// found by inertia, so that no window's edge cuts a cluster.
 inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
@@ -940,17 +942,44 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
                             " pairs; last: " + why + ")");
     if(widen) window = std::min<Eigen::Index>(max_window, window + window / 2);
   };
+  // The spectrum comes in clusters (a sphere's 2l + 1 values of degree l, split slightly by the
+  // mesh): a window whose edge falls inside one converges slowly, as the run must tell the
+  // cluster's values apart. The windows are then placed by inertia instead (below).
+  bool clustered = false;
   while(Eigen::Index(values.size()) < k || band == 0) {
     const Eigen::Index accepted = Eigen::Index(values.size());
+    // A window of exactly the eigenvalues in [u, edge), edge inside a gap (the counts a tenth of
+    // the mean spacing below and above it agree), with the shift midway: all of them lie nearer
+    // the shift than any other, so the run wants no margin and the band ends at the edge.
+    bool exact_window = false;
+    double edge = 0;
+    Eigen::Index wanted_pairs = window;
+    for(const double reach : {1.5, 1.0, 2.0, 0.75, 0.5}) {
+      if(!clustered || band == 0 || attempt > 0 || exact_window) break;
+      const double at = u + reach * double(B) / density, margin = 0.1 / density;
+      const Eigen::Index count = factor_at(at) - accepted;
+      if(count < 1 || count > std::min(3 * B, max_window) || factor_at(at - margin) - accepted != count ||
+         factor_at(at + margin) - accepted != count)
+        continue;
+      exact_window = true;
+      edge = at;
+      wanted_pairs = count;
+      sigma = 0.5 * (u + edge);
+    }
     // The window of the pairs nearest sigma reaches back below u only if [u, 2 sigma - u]
     // holds fewer than it does: count them exactly by inertia (a factorisation costs far less
     // than a Lanczos run) and move the shift halfway down to u until they fit, with a margin.
-    if(band > 0 && attempt == 0) sigma = u + 0.4 * double(window) / density;
-    for(int i = 0; band > 0 && i < 64 && factor_at(2 * sigma - u) - accepted > window - window / 8; ++i)
+    if(band > 0 && attempt == 0 && !exact_window) sigma = u + 0.4 * double(window) / density;
+    for(int i = 0; band > 0 && !exact_window && i < 64 && factor_at(2 * sigma - u) - accepted > window - window / 8; ++i)
       sigma = u + 0.5 * (sigma - u);
     factor_at(sigma);
-    Spectral_pairs F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, window, opt, on_op)
-                             : lanczos_run(ldlt, sqrt_mass, sigma, window, opt, on_op);
+    // An exact window holds its values up to both ends, the farthest from the shift, where a
+    // run's residual relative to the value is largest: a tenth of the tolerance keeps them as
+    // accurate as a margin does.
+    Spectral_options run_opt = opt;
+    if(exact_window) run_opt.tolerance = std::max(0.1 * opt.tolerance, std::min(opt.tolerance, 1e-12));
+    Spectral_pairs F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, wanted_pairs, run_opt, on_op)
+                             : lanczos_run(ldlt, sqrt_mass, sigma, wanted_pairs, run_opt, on_op);
     if(c > 0) {  // the complement's pairs only: re-project them against round-off
       null_space.remove_means(F.vectors, mass);
       for(Eigen::Index j = 0; j < F.values.size(); ++j)
@@ -966,12 +995,13 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     };
 #ifdef LAPMESH_DEBUG_BANDS
     std::fprintf(stderr, "band %d attempt %d window %ld sigma %.9g u %.9g found [%.9g, %.9g] in %lld solves\n", band,
-                 attempt, long(window), sigma, u, F.values[0], F.values[m - 1], F.operations);
+                 attempt, long(wanted_pairs), sigma, u, F.values[0], F.values[m - 1], F.operations);
 #endif
+    exact_window = exact_window && m == wanted_pairs && F.values[0] >= u && F.values[m - 1] < edge;
     // No overlap with the accepted range: move the shift down, unless u was raised to just below
     // values crowded above the last cut and the inertia shows nothing between u and the window
-    // (one missed closer to it fails the cut's count).
-    if(band > 0 && F.values[0] > u &&
+    // (one missed closer to it fails the cut's count), or the window is an exact one.
+    if(band > 0 && !exact_window && F.values[0] > u &&
        !(u_raised && factor_at(just_below(F.values[0], u, F.values[m - 1] - F.values[0])) == accepted)) {
       retry(false, "the window does not reach the accepted range");
       sigma = u + 0.5 * (sigma - u);
@@ -989,7 +1019,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     // any gap above u; where distinct values crowd so that no gap is wide, at a narrow one (the
     // Rayleigh-Ritz step across the cut restores orthogonality), still far wider than the margin
     // that joins values into one eigenspace.
-    Eigen::Index top = m - std::max<Eigen::Index>(1, m / 8);
+    Eigen::Index top = exact_window ? m : m - std::max<Eigen::Index>(1, m / 8);
     Eigen::Index first_new = 0;
     while(first_new < m && band > 0 && F.values[first_new] < u) ++first_new;
     // And a value is held only with a small residual: from a shift far below values that crowd,
@@ -1013,7 +1043,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
         }
       return at;
     };
-    Eigen::Index cut_at = -1;
+    Eigen::Index cut_at = exact_window && top == m ? m : -1;
     for(const double narrowest : {1e-6, 100 * partial_eigenspace_margin})
       for(const Eigen::Index from : {first_new + 1 + 3 * (top - first_new) / 4, first_new + 1})
         if(cut_at < 0) cut_at = widest_gap(from, narrowest);
@@ -1036,7 +1066,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       retry(true, "no spectral gap above " + message_number(u) + " inside the window");
       continue;
     }
-    const double cut = 0.5 * (F.values[cut_at - 1] + F.values[cut_at]);
+    const double cut = cut_at == m ? edge : 0.5 * (F.values[cut_at - 1] + F.values[cut_at]);
     const Eigen::Index added = cut_at - first_new;
     // Sylvester: exactly accepted + added eigenvalues below the cut, or the band missed one.
     const Eigen::Index below = factor_at(cut);
@@ -1052,6 +1082,15 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     if(band > 0) rayleigh_ritz_across_cut(stiffness, mass, values, vectors, band_begins, accepted + added);
     band_begins.push_back(accepted + added);
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
+    // Values far closer than the mean spacing form a cluster; a large one marks a clustered
+    // spectrum (the distinct values of a mesh without symmetry repel each other).
+    for(Eigen::Index j = first_new + 1, size = 1; j < cut_at && !clustered; ++j) {
+      size = F.values[j] - F.values[j - 1] < 0.1 / density ? size + 1 : 1;
+      clustered = size >= 8;
+#ifdef LAPMESH_DEBUG_BANDS
+      if(clustered) std::fprintf(stderr, "clustered at band %d\n", band);
+#endif
+    }
     u = cut;
     u_raised = false;
     // The window's values above the cut estimate the next ones. Where distinct values crowd far
@@ -1060,8 +1099,8 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     // counts show no eigenvalue in the gap, the accepted range reaches up to just below them.
     // (Copies of one repeated value are left alone: raising u puts them at the next window's
     // lower edge, where a run misses copies.)
-    const double next = F.values[cut_at], spread = F.values[m - 1] - next;
-    if(spread > distinct * std::abs(next) && next - cut > 100 * spread) {
+    const double next = cut_at < m ? F.values[cut_at] : 0, spread = F.values[m - 1] - next;
+    if(cut_at < m && spread > distinct * std::abs(next) && next - cut > 100 * spread) {
       const double raised = just_below(next, cut, spread);
       u_raised = factor_at(raised) == accepted + added;
       if(u_raised) u = raised;
@@ -1350,9 +1389,8 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
   // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
-  // faster with k, the bands' with n: the bands win from about k = n / 120 (on the spheres'
-  // clustered spectra only far later). For very large k they also keep the memory near the
-  // result's own.
+  // faster with k, the bands' with n: the bands win from about k = n / 120. For very large k
+  // they also keep the memory near the result's own.
   const bool bands_by_default = k >= 200 && (120 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
   if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
