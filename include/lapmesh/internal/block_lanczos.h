@@ -454,7 +454,8 @@ Block_lanczos_result block_lanczos_largest(Eigen::Index n, Eigen::Index nev, App
         if(restart >= opt.max_restarts)
           throw Numerical_error("block Lanczos: " + std::to_string(converged) + " of " + std::to_string(nev) +
                                 " eigenpairs converged after " + std::to_string(restart) +
-                                " restarts (tolerance " + message_number(opt.tolerance) + ")");
+                                " restarts (tolerance " + message_number(opt.tolerance) + ", blocks of " +
+                                std::to_string(opt.block_size) + ")");
         // Keep the wanted Ritz vectors and a third of the rest: the rest speeds up convergence of
         // the last wanted ones; the new room lets the Krylov space grow again.
         const Index keep = std::min(processed - b, std::max(nev, nev + (processed - nev) / 3));

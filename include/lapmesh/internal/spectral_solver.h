@@ -946,6 +946,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
   // mesh): a window whose edge falls inside one converges slowly, as the run must tell the
   // cluster's values apart. The windows are then placed by inertia instead (below).
   bool clustered = false;
+  Eigen::Index band_block = 0;  // > 0: the block that runs which stalled grew to
   while(Eigen::Index(values.size()) < k || band == 0) {
     const Eigen::Index accepted = Eigen::Index(values.size());
     // A window of exactly the eigenvalues in [u, edge), edge inside a gap (the counts a tenth of
@@ -978,8 +979,26 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     // accurate as a margin does.
     Spectral_options run_opt = opt;
     if(exact_window) run_opt.tolerance = std::max(0.1 * opt.tolerance, std::min(opt.tolerance, 1e-12));
-    Spectral_pairs F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, wanted_pairs, run_opt, on_op)
-                             : lanczos_run(ldlt, sqrt_mass, sigma, wanted_pairs, run_opt, on_op);
+    if(band_block > 0) run_opt.block_size = int(band_block);
+    Spectral_pairs F;
+    try {
+      // A run that converges no further pair in half the restarts allowed has stalled. The single
+      // run's shorter watch would cut short band runs on values crowded far closer than the
+      // tolerance, which converge slowly but surely, and not at all with larger blocks
+      // (doc/spectral.md).
+      const int stall = opt.block_size <= 0 ? std::max(1, opt.max_restarts / 2) : 0;
+      F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, wanted_pairs, run_opt, on_op, nullptr, stall)
+                : lanczos_run(ldlt, sqrt_mass, sigma, wanted_pairs, run_opt, on_op, nullptr, stall);
+    } catch(const Stalled_run& stalled) {
+      // Copies of a repeated value beyond what the block finds (identical parts): the band again
+      // with twice the block, up to blocks of 32 as for a single run, kept for the bands that
+      // follow, as their values repeat alike.
+      if(band_block >= 32) throw Numerical_error(stalled.what());
+      ops_total += stalled.operations;
+      band_block = 2 * std::max(band_block, default_block_size(wanted_pairs));
+      retry(false, stalled.what());
+      continue;
+    }
     if(c > 0) {  // the complement's pairs only: re-project them against round-off
       null_space.remove_means(F.vectors, mass);
       for(Eigen::Index j = 0; j < F.values.size(); ++j)
