@@ -956,7 +956,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     double edge = 0;
     Eigen::Index wanted_pairs = window;
     for(const double reach : {1.5, 1.0, 2.0, 0.75, 0.5}) {
-      if(!clustered || band == 0 || attempt > 0 || exact_window) break;
+      if(!clustered || attempt > 0 || exact_window) break;  // clustered: from band 1 on
       const double at = u + reach * double(B) / density, margin = 0.1 / density;
       const Eigen::Index count = factor_at(at) - accepted;
       if(count < 1 || count > std::min(3 * B, max_window) || factor_at(at - margin) - accepted != count ||
@@ -1087,8 +1087,9 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     }
     const double cut = cut_at == m ? edge : 0.5 * (F.values[cut_at - 1] + F.values[cut_at]);
     const Eigen::Index added = cut_at - first_new;
-    // Sylvester: exactly accepted + added eigenvalues below the cut, or the band missed one.
-    const Eigen::Index below = factor_at(cut);
+    // Sylvester: exactly accepted + added eigenvalues below the cut, or the band missed one (an
+    // exact window's edge was counted before its run).
+    const Eigen::Index below = cut_at == m ? accepted + wanted_pairs : factor_at(cut);
 #ifdef LAPMESH_DEBUG_BANDS
     std::fprintf(stderr, "band %d cut %.9g below %ld expected %ld\n", band, cut, long(below), long(accepted + added));
 #endif
