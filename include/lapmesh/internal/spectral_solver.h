@@ -587,6 +587,18 @@ public:
   long long operations;  ///< the run's
 };
 
+/// The block to run again with after a run for m pairs stalled in blocks of `block` (0: the
+/// default): copies of a repeated value beyond what the block finds, as on identical parts. Twice
+/// the block, up to eight times the default for m pairs; a stall with a block the options fix,
+/// or at that limit, is a Numerical_error.
+inline Eigen::Index block_after_stall(Eigen::Index block, Eigen::Index m, const Spectral_options& opt,
+                                      const Stalled_run& stalled)
+{
+  const Eigen::Index standard = default_block_size(m), current = std::max(block, standard);
+  if(opt.block_size > 0 || current >= 8 * standard) throw Numerical_error(stalled.what());
+  return 2 * current;
+}
+
 /// The restarts without progress after which a run of verified_runs() is retried with a larger
 /// block: a value repeated more often than a block's Krylov space holds it had runs of 20
 /// identical parts reach the 1000 restarts allowed (doc/spectral.md).
@@ -990,12 +1002,10 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       F = c > 0 ? lanczos_run(deflated, sqrt_mass, sigma, wanted_pairs, run_opt, on_op, nullptr, stall)
                 : lanczos_run(ldlt, sqrt_mass, sigma, wanted_pairs, run_opt, on_op, nullptr, stall);
     } catch(const Stalled_run& stalled) {
-      // Copies of a repeated value beyond what the block finds (identical parts): the band again
-      // with twice the block, up to blocks of 32 as for a single run, kept for the bands that
-      // follow, as their values repeat alike.
-      if(band_block >= 32) throw Numerical_error(stalled.what());
+      // The larger block is kept for the bands that follow: identical parts repeat their values
+      // alike all along the spectrum.
+      band_block = block_after_stall(band_block, wanted_pairs, opt, stalled);
       ops_total += stalled.operations;
-      band_block = 2 * std::max(band_block, default_block_size(wanted_pairs));
       retry(false, stalled.what());
       continue;
     }
@@ -1172,10 +1182,9 @@ Spectral_pairs verified_runs(Eigen::Index n, Eigen::Index k, Eigen::Index c, Eig
     try {
       pairs = run(m, run_opt, spent);
     } catch(const Stalled_run& stalled) {
-      // Copies of a repeated value beyond what the block finds: a larger block.
-      if(opt.block_size > 0 || attempt >= 4) throw Numerical_error(stalled.what());
+      if(attempt >= 4) throw Numerical_error(stalled.what());
       spent += stalled.operations;
-      block *= 2;
+      block = block_after_stall(block, m, opt, stalled);
       continue;
     }
     spent += pairs.operations;
