@@ -894,8 +894,8 @@ constexpr double held_residual = 1e-8;
 /// that fails the inertia count (a missed copy of a repeated value), is widened. Values that
 /// crowd far above the last cut, across a gap that the counts show empty, raise the accepted
 /// range to just below them, so that the next shift lies next to them and not in the gap.
-/// Once a band has held a cluster, windows are exact: the values in [u, edge), edge in a gap
-/// found by inertia, so that no window's edge cuts a cluster.
+/// From the second band on, windows are exact: the values in [u, edge), edge in a gap found by
+/// inertia, so that no window's edge cuts a cluster and no margin of values is found again.
 inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
                                         Eigen::Index k, const Spectral_options& opt)
 {
@@ -954,21 +954,18 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
                             " pairs; last: " + why + ")");
     if(widen) window = std::min<Eigen::Index>(max_window, window + window / 2);
   };
-  // The spectrum comes in clusters (a sphere's 2l + 1 values of degree l, split slightly by the
-  // mesh): a window whose edge falls inside one converges slowly, as the run must tell the
-  // cluster's values apart. The windows are then placed by inertia instead (below).
-  bool clustered = false;
   Eigen::Index band_block = 0;  // > 0: the block that runs which stalled grew to
   while(Eigen::Index(values.size()) < k || band == 0) {
     const Eigen::Index accepted = Eigen::Index(values.size());
-    // A window of exactly the eigenvalues in [u, edge), edge inside a gap (the counts a tenth of
-    // the mean spacing below and above it agree), with the shift midway: all of them lie nearer
-    // the shift than any other, so the run wants no margin and the band ends at the edge.
+    // From the second band on, a window of exactly the eigenvalues in [u, edge), edge inside a gap
+    // (the counts a tenth of the mean spacing below and above it agree), with the shift midway:
+    // all of them lie nearer the shift than any other, so the run wants no margin, no value of
+    // a cluster is split from the rest by the window's edge, and the band ends at the edge.
     bool exact_window = false;
     double edge = 0;
     Eigen::Index wanted_pairs = window;
     for(const double reach : {1.5, 1.0, 2.0, 0.75, 0.5}) {
-      if(!clustered || attempt > 0 || exact_window) break;  // clustered: from band 1 on
+      if(band == 0 || attempt > 0 || exact_window) break;
       const double at = u + reach * double(B) / density, margin = 0.1 / density;
       const Eigen::Index count = factor_at(at) - accepted;
       if(count < 1 || count > std::min(3 * B, max_window) || factor_at(at - margin) - accepted != count ||
@@ -1112,15 +1109,6 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     if(band > 0) rayleigh_ritz_across_cut(stiffness, mass, values, vectors, band_begins, accepted + added);
     band_begins.push_back(accepted + added);
     density = double(added) / (cut - (band == 0 ? 0.0 : u));
-    // Values far closer than the mean spacing form a cluster; a large one marks a clustered
-    // spectrum (the distinct values of a mesh without symmetry repel each other).
-    for(Eigen::Index j = first_new + 1, size = 1; j < cut_at && !clustered; ++j) {
-      size = F.values[j] - F.values[j - 1] < 0.1 / density ? size + 1 : 1;
-      clustered = size >= 8;
-#ifdef LAPMESH_DEBUG_BANDS
-      if(clustered) std::fprintf(stderr, "clustered at band %d\n", band);
-#endif
-    }
     u = cut;
     u_raised = false;
     // The window's values above the cut estimate the next ones. Where distinct values crowd far
