@@ -1406,9 +1406,10 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
   // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
-  // faster with k, the bands' with n: the bands win from about k = n / 120. For very large k
-  // they also keep the memory near the result's own.
-  const bool bands_by_default = k >= 200 && (120 * k > n || k > 1000);
+  // faster with k, the bands' with n: since their exact windows the bands win from about
+  // k = n / 175, and not below k = 150. For very large k they also keep the memory near the
+  // result's own.
+  const bool bands_by_default = k >= 150 && (175 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
   if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
   {
