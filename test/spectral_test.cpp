@@ -1168,24 +1168,24 @@ TEST(Spectral, DocumentedLimitOnIcosphere) { expect_documented_limit(lapmesh::ic
 
 TEST(Spectral, DocumentedLimitOnBumpySphere) { expect_documented_limit(lapmesh::bumpy_sphere(4), "bumpy sphere"); }
 
-// From k = 150 the default is one block Lanczos run while k <= n / 175 (and k <= 1000), bands of
-// 40 above. k = 150 on a torus of 30 000 vertices (exact multiplicities 2 and 4) takes the single
+// From k = 200 the default is one block Lanczos run while k <= n / 175 (and k <= 1000), bands of
+// 40 above. k = 200 on a torus of 35 000 vertices (exact multiplicities 2 and 4) takes the single
 // run, and its spectrum is verified and equals the bands'; on one of 22 500 vertices it takes
-// the bands, and k = 149 there one run.
+// the bands, and k = 199 there one run.
 TEST(Spectral, LargeKTakesOneRunOnALargeEnoughMesh)
 {
-  const Eigen::Index k = 150;
+  const Eigen::Index k = 200;
   lapmesh::Spectral_options single, banded;
   single.band_size = 0;
   banded.band_size = 40;
-  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(200, 150, 1.0, 0.3)));
-  ASSERT_EQ(pencil.mass.size(), 30000);
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(200, 175, 1.0, 0.3)));
+  ASSERT_EQ(pencil.mass.size(), 35000);
   const auto by_default = lapmesh::Spectral_basis::from_pencil(pencil, k);
   const auto one_run = lapmesh::Spectral_basis::from_pencil(pencil, k, single);
   const auto bands = lapmesh::Spectral_basis::from_pencil(pencil, k, banded);
   EXPECT_EQ(by_default.operations(), one_run.operations());  // the same deterministic path
   EXPECT_NE(by_default.operations(), bands.operations());
-  expect_verified_spectrum(pencil, by_default, k, "one run at k = 150");
+  expect_verified_spectrum(pencil, by_default, k, "one run at k = 200");
   for(Eigen::Index j = 0; j < k; ++j)
     EXPECT_NEAR(by_default.eigenvalues()[j], bands.eigenvalues()[j], 1e-8 * (1 + bands.eigenvalues()[j])) << j;
 

@@ -434,7 +434,7 @@ struct Spectral_options
   int dense_limit = 2500;          ///< use a dense solver when n <= this and k + extra >= n / 2
   int band_size = -1;              ///< > 0: spectrum slicing in bands of this many pairs, widened
                                    ///< by the solver past wider clusters (`method` inside);
-                                   ///< 0: one run; -1: 40 when k >= 150 and either k > n / 175
+                                   ///< 0: one run; -1: 40 when k >= 200 and either k > n / 175
                                    ///< or k > 1000
   double ncv_factor = 0;           ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
                                    ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos);

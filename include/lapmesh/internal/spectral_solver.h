@@ -1407,9 +1407,9 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
   // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
   // faster with k, the bands' with n: since their exact windows the bands win from about
-  // k = n / 175, and not below k = 150. For very large k they also keep the memory near the
-  // result's own.
-  const bool bands_by_default = k >= 150 && (175 * k > n || k > 1000);
+  // k = n / 175. Below k = 200 the gain is small and identical parts cost the bands more. For
+  // very large k they also keep the memory near the result's own.
+  const bool bands_by_default = k >= 200 && (175 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
   if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
   {
