@@ -724,6 +724,13 @@ double largest_relative_residual(const lapmesh::Laplacian_pencil& p, const lapme
 // A held spectrum is right when its vectors are M-orthonormal, every pair has a small
 // residual, and the inertia count at gaps spread over the held values (and just above the
 // last one) equals the number of values held below: no eigenvalue was dropped or duplicated.
+/// A point above lambda_j and below lambda_{j+1}, or just above lambda_j where the values end
+/// (a basis may hold no pair past the k asked for).
+double just_above(const Eigen::VectorXd& lambda, Eigen::Index j)
+{
+  return j + 1 < lambda.size() ? 0.5 * (lambda[j] + lambda[j + 1]) : lambda[j] * (1 + 1e-8);
+}
+
 void expect_verified_spectrum(const lapmesh::Laplacian_pencil& p, const lapmesh::Spectral_basis& b, Eigen::Index k,
                               const std::string& what)
 {
@@ -737,7 +744,7 @@ void expect_verified_spectrum(const lapmesh::Laplacian_pencil& p, const lapmesh:
   for(int c = 1; c <= cuts; ++c) {
     Eigen::Index j = b.size() * c / cuts - 1;  // cut above lambda_j, at the next gap
     while(j + 1 < b.size() && lambda[j + 1] - lambda[j] <= 1e-6 * lambda[j + 1]) ++j;
-    const double tau = j + 1 < b.size() ? 0.5 * (lambda[j] + lambda[j + 1]) : lambda[j] * (1 + 1e-8);
+    const double tau = just_above(lambda, j);
     EXPECT_EQ(eigenvalues_below(p, tau), j + 1) << what << ": eigenvalues below " << tau;
   }
 }
@@ -1118,11 +1125,8 @@ TEST(Spectral, EigenvaluesCrowdedFarAboveZeroAreFoundFromAShiftNextToThem)
       // neighbours toward the band's top: relative residuals up to 1.2e-7 (1e-11 elsewhere),
       // before each band held values only below the first residual above 1e-8.
       EXPECT_LT(largest_relative_residual(pencil, bands), 2e-8) << k;
-      // The basis may hold exactly k pairs; the values here lie more than 1e-7 apart (relative).
-      ASSERT_GE(bands.eigenvalues().size(), k);
-      const double last = bands.eigenvalues()[k - 1];
-      const double past_last = bands.eigenvalues().size() > k ? 0.5 * (last + bands.eigenvalues()[k]) : last * (1 + 1e-8);
-      EXPECT_EQ(eigenvalues_below(pencil, past_last), k) << k;
+      ASSERT_GE(bands.eigenvalues().size(), k);  // values here lie more than 1e-7 apart (relative)
+      EXPECT_EQ(eigenvalues_below(pencil, just_above(bands.eigenvalues(), k - 1)), k) << k;
       for(Eigen::Index j = 0; j < 200; ++j)
         EXPECT_NEAR(bands.eigenvalues()[j], reference.eigenvalues()[j], 1e-9 * (1 + reference.eigenvalues()[j]))
           << k << " " << j;

@@ -965,7 +965,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
     double edge = 0;
     Eigen::Index wanted_pairs = window;
     for(const double reach : {1.5, 1.0, 2.0, 0.75, 0.5}) {
-      if(band == 0 || attempt > 0 || exact_window) break;
+      if(band == 0 || attempt > 0) break;  // a band retried falls back to the placement below
       const double at = u + reach * double(B) / density, margin = 0.1 / density;
       const Eigen::Index count = factor_at(at) - accepted;
       if(count < 1 || count > std::min(3 * B, max_window) || factor_at(at - margin) - accepted != count ||
@@ -975,6 +975,7 @@ inline Spectral_pairs banded_eigenpairs(const Eigen::SparseMatrix<double>& stiff
       edge = at;
       wanted_pairs = count;
       sigma = 0.5 * (u + edge);
+      break;
     }
     // The window of the pairs nearest sigma reaches back below u only if [u, 2 sigma - u]
     // holds fewer than it does: count them exactly by inertia (a factorisation costs far less
@@ -1407,7 +1408,7 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
   // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
   // faster with k, the bands' with n: since their exact windows the bands win from about
-  // k = n / 175. Below k = 200 the gain is small and identical parts cost the bands more. For
+  // k = n / 175. Below k = 200 they lost on some meshes (an icosphere, identical parts). For
   // very large k they also keep the memory near the result's own.
   const bool bands_by_default = k >= 200 && (175 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
