@@ -65,10 +65,13 @@ void expect_pairs_match(const lapmesh::Laplacian_pencil& pencil, const lapmesh::
   }
 }
 
-/// The options of the solver named "block" (the default), "spectra" or "bands" (of 8 pairs or more).
+/// The options of the solver named "block", "spectra" or "bands" (of 8 pairs or more), each
+/// solving the pencil whole, or "copies" (the default: components that are copies of one
+/// another solved once, on one copy).
 lapmesh::Spectral_options solver_options(const std::string& solver)
 {
   lapmesh::Spectral_options opt;
+  opt.solve_copies_once = solver == "copies";
   if(solver == "spectra") opt.method = lapmesh::Krylov_method::spectra;
   if(solver == "bands") opt.band_size = 8;
   return opt;
@@ -877,12 +880,13 @@ TEST(Spectral, MoreComponentsThanPairsHoldTheWholeNullSpace)
 }
 
 namespace {
-/// `copies` icospheres of 42 vertices side by side (along a line, or `staggered` along a
-/// parabola: the same spectrum, other round-off): every value of one sphere repeated `copies` times.
-lapmesh::Triangle_soup identical_spheres(int copies, bool staggered = false)
+/// `copies` icospheres (of 42 vertices at `level` 1) side by side (along a line, or `staggered`
+/// along a parabola: the same spectrum, other round-off): every value of one sphere repeated
+/// `copies` times.
+lapmesh::Triangle_soup identical_spheres(int copies, bool staggered = false, int level = 1)
 {
   lapmesh::Triangle_soup soup;
-  const lapmesh::Triangle_soup part = lapmesh::icosphere(1, 1.0);
+  const lapmesh::Triangle_soup part = lapmesh::icosphere(level, 1.0);
   for(int copy = 0; copy < copies; ++copy) {
     const int off = int(soup.points.size());
     const double y = staggered ? 0.01 * copy * copy : 0.0;
@@ -907,7 +911,7 @@ TEST(Spectral, AValueRepeatedMoreOftenThanARunHoldsIsSplitWhereItMustBe)
   ASSERT_LT(exact[119] - exact[30], 1e-10 * exact[30]);  // 90 copies of one value
   ASSERT_LT(exact[269] - exact[120], 1e-10 * exact[120]);
   ASSERT_GT(exact[120] - exact[119], 0.1 * exact[120]);
-  for(const char* solver : {"block", "bands"})
+  for(const char* solver : {"block", "bands", "copies"})
     for(Eigen::Index k : {35, 120, 150}) {
       const std::string what = std::string(solver) + " k=" + std::to_string(k);
       const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
@@ -929,7 +933,7 @@ TEST(Spectral, ARunThatStallsIsRetriedWithALargerBlock)
   const auto spheres = lapmesh::laplacian_pencil(to_mesh(identical_spheres(20)));
   const Eigen::VectorXd exact = dense_eigenvalues(spheres);
   ASSERT_LT(exact[179] - exact[80], 1e-10 * exact[80]);  // 100 copies of one value
-  const auto computed = basis_or_failure(spheres, 85, lapmesh::Spectral_options(), "20 spheres k=85");
+  const auto computed = basis_or_failure(spheres, 85, solver_options("block"), "20 spheres k=85");
   ASSERT_TRUE(computed);
   ASSERT_GE(computed->size(), 85);
   expect_pairs_match(spheres, *computed, exact, exact[20], "20 spheres k=85");
@@ -976,7 +980,7 @@ TEST(Spectral, ABandThatStallsIsRetriedWithALargerBlock)
   // allowed runs again with twice the block.
   const auto spheres = lapmesh::laplacian_pencil(to_mesh(identical_spheres(30, true)));
   const Eigen::VectorXd exact = dense_eigenvalues(spheres);
-  lapmesh::Spectral_options banded;
+  lapmesh::Spectral_options banded = solver_options("bands");
   banded.band_size = 40;
   const auto computed = basis_or_failure(spheres, 200, banded, "30 staggered spheres k=200");
   ASSERT_TRUE(computed);
@@ -1027,7 +1031,7 @@ TEST(Spectral, PartsOfFewDistinctValuesGiveNoNullVectorsAsPairs)
     const Eigen::VectorXd exact = dense_eigenvalues(pencil);
     ASSERT_LT(std::abs(exact[99]), 1e-9 * exact[100]);
     ASSERT_LT(exact[199] - exact[100], 1e-10 * exact[100]);  // at least 100 copies of one value
-    for(const char* solver : {"block", "spectra", "bands"})
+    for(const char* solver : {"block", "spectra", "bands", "copies"})
       for(Eigen::Index k : {3, 100, 101, 120}) {
         const std::string what = case_label(lap, solver, k);
         const auto computed = basis_or_failure(pencil, k, solver_options(solver), what);
@@ -1037,6 +1041,143 @@ TEST(Spectral, PartsOfFewDistinctValuesGiveNoNullVectorsAsPairs)
         expect_pairs_match(pencil, b, exact, exact[100], what);
         EXPECT_EQ(b.splits_eigenspace(k), k != 100) << what;
       }
+  }
+}
+
+namespace {
+
+/// `part` appended to `soup`, scaled and moved by (dx, 0, 0), its points listed from the
+/// `rotate`-th on (the same part under another numbering).
+void append_part(lapmesh::Triangle_soup& soup, const lapmesh::Triangle_soup& part, double scale, double dx, int rotate = 0)
+{
+  const int off = int(soup.points.size()), count = int(part.points.size());
+  for(int i = 0; i < count; ++i) {
+    const auto& p = part.points[std::size_t((i + rotate) % count)];
+    soup.points.push_back({scale * p[0] + dx, scale * p[1], scale * p[2]});
+  }
+  for(auto t : part.triangles) {
+    for(auto& v : t) v = off + (v - rotate % count + count) % count;
+    soup.triangles.push_back(t);
+  }
+}
+
+/// Every eigenvalue of each distinct part (a dense solve), repeated once per copy, ascending.
+Eigen::VectorXd spectrum_of_parts(const std::vector<std::pair<lapmesh::Triangle_soup, int>>& parts)
+{
+  std::vector<double> all;
+  for(const auto& [part, copies] : parts) {
+    const Eigen::VectorXd values = dense_eigenvalues(lapmesh::laplacian_pencil(to_mesh(part)));
+    for(int c = 0; c < copies; ++c) all.insert(all.end(), values.data(), values.data() + values.size());
+  }
+  std::sort(all.begin(), all.end());
+  return Eigen::Map<const Eigen::VectorXd>(all.data(), Eigen::Index(all.size()));
+}
+
+} // namespace
+
+TEST(Spectral, ComponentCopiesAreFoundToRoundOffOnly)
+{
+  using lapmesh::internal::find_component_copies;
+  const lapmesh::Triangle_soup sphere = lapmesh::icosphere(1, 1.0);
+  auto copies_in = [](const lapmesh::Triangle_soup& soup) {
+    const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
+    return find_component_copies(pencil.stiffness, pencil.mass);
+  };
+  // Copies far apart differ by the round-off of their coordinates: one class of five.
+  lapmesh::Triangle_soup far;
+  for(int c = 0; c < 5; ++c) append_part(far, sphere, 1.0, 1e4 * c);
+  const auto five = copies_in(far);
+  ASSERT_TRUE(five);
+  ASSERT_EQ(five->classes.size(), 1u);
+  EXPECT_EQ(five->classes[0], (std::vector<int>{0, 1, 2, 3, 4}));
+  EXPECT_TRUE(five->singles.empty());
+  // Scaled by 1 + 1e-6, or numbered otherwise, a sphere is not a copy (the second is a copy the
+  // test cannot see: its pencil is solved whole).
+  lapmesh::Triangle_soup mixed;
+  for(int c = 0; c < 3; ++c) append_part(mixed, sphere, 1.0, 3.0 * c);
+  append_part(mixed, sphere, 1.0 + 1e-6, 9.0);
+  append_part(mixed, sphere, 1.0, 12.0, 1);
+  const auto three = copies_in(mixed);
+  ASSERT_TRUE(three);
+  ASSERT_EQ(three->classes.size(), 1u);
+  EXPECT_EQ(three->classes[0], (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(three->singles, (std::vector<int>{3, 4}));
+  EXPECT_EQ(three->rows[4].size(), 42u);
+  // No copies: none.
+  EXPECT_FALSE(copies_in(sphere));
+  lapmesh::Triangle_soup distinct;
+  append_part(distinct, sphere, 1.0, 0.0);
+  append_part(distinct, sphere, 2.0, 5.0);
+  EXPECT_FALSE(copies_in(distinct));
+}
+
+TEST(Spectral, CopiesOfAPartAreSolvedOnce)
+{
+  // 100 icospheres of 162 vertices staggered along a parabola: lambda = 0 a hundred times, then
+  // 300 copies of l = 1. Solved whole, the pencil failed at k = 200 ("repeated eigenvalues
+  // missed after 4 attempts") and took 10 s for 30 such spheres at k = 300. One sphere is solved
+  // (densely, at this size: no Krylov solve), its pairs carried to the other copies. k = 50 falls
+  // in the null space (held whole), k = 200 inside l = 1 (held to one past it), k = 400 at its end.
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(identical_spheres(100, true, 2)));
+  ASSERT_EQ(pencil.mass.size(), 16200);
+  const Eigen::VectorXd exact = spectrum_of_parts({{lapmesh::icosphere(2, 1.0), 100}});
+  ASSERT_LT(exact[399] - exact[100], 1e-10 * exact[100]);
+  ASSERT_GT(exact[400] - exact[399], 0.1 * exact[400]);
+  for(const Eigen::Index k : {50, 200, 400}) {
+    const std::string what = "100 spheres k=" + std::to_string(k);
+    const auto computed = basis_or_failure(pencil, k, lapmesh::Spectral_options(), what);
+    ASSERT_TRUE(computed) << what;
+    const lapmesh::Spectral_basis& b = *computed;
+    EXPECT_EQ(b.size(), k == 50 ? 100 : k == 200 ? 201 : 400) << what;
+    EXPECT_EQ(b.operations(), 0) << what;
+    expect_pairs_match(pencil, b, exact, exact[100], what);
+    EXPECT_EQ(b.splits_eigenspace(k), k != 400) << what;
+    // None missed below the held eigenspaces, and all of them up to the end of l = 1.
+    EXPECT_EQ(eigenvalues_below(pencil, 0.5 * exact[100]), 100) << what;
+    EXPECT_EQ(eigenvalues_below(pencil, just_above(exact, 399)), 400) << what;
+  }
+  expect_verified_spectrum(pencil, *basis_or_failure(pencil, 400, lapmesh::Spectral_options(), "k=400"), 400, "k=400");
+}
+
+TEST(Spectral, CopiesBesideDistinctPartsAreMergedAndVerified)
+{
+  // Twelve copies of an icosphere of 642 vertices (a Krylov run on one of them), beside a bumpy
+  // sphere, a sphere scaled by 1.3, and a sphere numbered otherwise (copies the search cannot see,
+  // solved whole with the rest): every pair against the parts' dense spectra, and the inertia
+  // counts of the whole pencil.
+  lapmesh::Triangle_soup soup;
+  const lapmesh::Triangle_soup big = lapmesh::icosphere(3, 1.0), small = lapmesh::icosphere(1, 1.0);
+  for(int c = 0; c < 12; ++c) append_part(soup, big, 1.0, 3.0 * c);
+  append_part(soup, lapmesh::bumpy_sphere(2), 1.0, 40.0);
+  append_part(soup, small, 1.3, 45.0);
+  append_part(soup, small, 1.0, 50.0);
+  append_part(soup, small, 1.0, 55.0, 7);
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
+  lapmesh::Triangle_soup scaled;
+  append_part(scaled, small, 1.3, 0.0);
+  const Eigen::VectorXd exact =
+    spectrum_of_parts({{big, 12}, {lapmesh::bumpy_sphere(2), 1}, {scaled, 1}, {small, 2}});
+  ASSERT_EQ(exact.size(), pencil.mass.size());
+  for(const Eigen::Index k : {16, 60, 150}) {
+    const std::string what = "copies and distinct parts k=" + std::to_string(k);
+    const auto computed = basis_or_failure(pencil, k, lapmesh::Spectral_options(), what);
+    ASSERT_TRUE(computed) << what;
+    const lapmesh::Spectral_basis& b = *computed;
+    ASSERT_GE(b.size(), k) << what;
+    EXPECT_GT(b.operations(), 0) << what;
+    expect_pairs_match(pencil, b, exact, exact[16], what);
+    if(k == 16) {  // the null space, one pair per component
+      EXPECT_EQ(b.size(), 16) << what;
+      EXPECT_EQ(eigenvalues_below(pencil, 0.5 * exact[16]), 16) << what;
+    } else if(b.splits_eigenspace(k)) {  // one past lambda_{k-1}, none missed below its eigenspace
+      EXPECT_EQ(b.size(), k + 1) << what;
+      Eigen::Index first = k - 1;
+      while(exact[first] - exact[first - 1] <= 1e-6 * exact[first]) --first;
+      EXPECT_EQ(eigenvalues_below(pencil, 0.5 * (exact[first - 1] + exact[first])), first) << what;
+      EXPECT_GE(eigenvalues_below(pencil, exact[k] * (1 + 1e-8)), k + 1) << what;
+    } else {
+      expect_verified_spectrum(pencil, b, k, what);
+    }
   }
 }
 

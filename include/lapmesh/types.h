@@ -436,6 +436,8 @@ struct Spectral_options
                                    ///< by the solver past wider clusters (`method` inside);
                                    ///< 0: one run; -1: 40 when k >= 200 and either k > n / 175
                                    ///< or k > 1000
+  bool solve_copies_once = true;   ///< components that are copies of one another (an assembly's
+                                   ///< repeated parts) solved once, on one copy
   double ncv_factor = 0;           ///< Krylov subspace size max(ncv_factor * m + 1, m + 20) (Spectra)
                                    ///< or max(ncv_factor * m, m + 6 block_size) (block Lanczos);
                                    ///< 0: the method's own, 2 (Spectra) or, for block Lanczos,

@@ -47,6 +47,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <lapmesh/internal/cholmod.h>
+#include <lapmesh/internal/component_copies.h>
 #include <lapmesh/internal/supernodal_ldlt.h>
 #include <lapmesh/internal/union_find.h>
 
@@ -56,10 +57,12 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <numeric>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace lapmesh {
@@ -699,13 +702,23 @@ Spectral_pairs lanczos_run(const Factor& factor, const Eigen::VectorXd& sqrt_mas
   return block_lanczos_run(factor, sqrt_mass, sigma, m, opt, on_op, watch, stall_restarts);
 }
 
+/// Whether the ascending values v[i - 1] and v[i] belong to different eigenspaces: a relative
+/// gap, against v[i] or, near zero, against `scale`, the magnitude of the largest value.
+inline bool gap_before(const Eigen::VectorXd& v, Eigen::Index i, double scale)
+{
+  return v[i] - v[i - 1] > 1e-6 * std::max(std::abs(v[i]), 1e-6 * scale);
+}
+
+/// The magnitude of the largest of ascending values, for gap_before().
+inline double gap_scale(const Eigen::VectorXd& v) { return std::max(std::abs(v[v.size() - 1]), 1e-300); }
+
 /// The end of the cluster of lambda_{k-1}: the first j >= k-1 with a relative gap to
 /// lambda_{j+1}; -1 when the cluster reaches the last computed value.
 inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
 {
-  const double scale = std::max(std::abs(v[v.size() - 1]), 1e-300);
+  const double scale = gap_scale(v);
   for(Eigen::Index j = k - 1; j + 1 < v.size(); ++j)
-    if(v[j + 1] - v[j] > 1e-6 * std::max(std::abs(v[j + 1]), 1e-6 * scale)) return j;
+    if(gap_before(v, j + 1, scale)) return j;
   return -1;
 }
 
@@ -1397,14 +1410,11 @@ Spectral_pairs smallest_eigenpairs_reshifting(const Eigen::SparseMatrix<double>&
   return pairs;
 }
 
-inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
-                                          Eigen::Index k, const Spectral_options& opt)
+/// The k smallest eigenpairs of a pencil solved whole: bands or one run, the Cholesky chosen.
+inline Spectral_pairs eigenpairs_of_pencil(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
+                                           Eigen::Index k, const Spectral_options& opt)
 {
   const Eigen::Index n = mass.size();
-  if(k < 1 || k > n)
-    throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
-                                std::to_string(n) + "]");
-  if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   // Measured (doc/spectral.md): one block Lanczos run re-orthogonalises a basis of about twice
   // k vectors at every step, bands of 40 pay a factorisation per band. The run's cost grows
   // faster with k, the bands' with n: since their exact windows the bands win from about
@@ -1428,6 +1438,226 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
   }
   using Simplicial_llt = Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>;
   return smallest_eigenpairs_reshifting<Simplicial_llt>(stiffness, mass, k, opt);
+}
+
+/// A part of a pencil with copies (eigenpairs_of_copies()): a class of copies, solved on its
+/// first component, or the components without a copy, solved together.
+struct Copied_part
+{
+  std::vector<const std::vector<int>*> placements;  ///< the rows of each copy in the whole (one for the rest)
+  Eigen::SparseMatrix<double> stiffness;
+  Eigen::VectorXd mass;
+  Eigen::Index asked = 0;
+  Eigen::Index null_pairs = 0;  ///< its first pairs, the null space's, taken exactly instead
+  Spectral_pairs pairs;
+  double complete_below = 0;  ///< every eigenvalue of the part below it is held
+};
+
+/// Parts of up to this many vertices are solved by the dense solver (eigenpairs_of_copies()).
+constexpr Eigen::Index dense_part_size = 200;
+
+/// The first value of the last eigenspace among ascending values (gap_before()).
+inline double start_of_last_cluster(const Eigen::VectorXd& v)
+{
+  const double scale = gap_scale(v);
+  Eigen::Index i = v.size() - 1;
+  while(i > 0 && !gap_before(v, i, scale)) --i;
+  return v[i];
+}
+
+/// The pairs of a class's first component carried to another copy: a Rayleigh-Ritz step on the
+/// copy's own S and M (which agree with the first's to round-off) in the span of the vectors,
+/// so that the copy's vectors are M-orthonormal for its own M.
+inline Spectral_pairs pairs_on_copy(const Spectral_pairs& first, const Eigen::SparseMatrix<double>& stiffness,
+                                    const Eigen::VectorXd& mass)
+{
+  const Eigen::MatrixXd& Phi = first.vectors;
+  Eigen::MatrixXd H = -(Phi.transpose() * (stiffness * Phi));
+  Eigen::MatrixXd G = Phi.transpose() * (mass.asDiagonal() * Phi);
+  H = 0.5 * (H + H.transpose()).eval();
+  G = 0.5 * (G + G.transpose()).eval();
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ritz(H, G);
+  if(ritz.info() != Eigen::Success) throw Numerical_error("spectral solver: the Rayleigh-Ritz step on a copied part failed");
+  Spectral_pairs out;
+  out.values = ritz.eigenvalues();
+  out.vectors = Phi * ritz.eigenvectors();
+  return out;
+}
+
+/// The k smallest eigenpairs of a pencil whose components include copies of one another (an
+/// assembly's repeated parts, see component_copies.h): each class solved once, on its first
+/// component, for a share of the k pairs (one more than k over its copies), the components
+/// without a copy solved together, and the values merged. A class's pairs reach its other
+/// copies by pairs_on_copy(), and one inertia count of the whole pencil checks the merge at the
+/// first gap past lambda_{k-1}. A part whose held values do not reach that gap is asked for
+/// twice as many, up to four rounds. The held set ends at the gap, or one past lambda_{k-1}
+/// inside its eigenspace (as a run's, verified_count()), or after the whole null space. None
+/// when a part needs the dense solver past its limit, the rounds run out, or the count
+/// disagrees with the merge: the caller then solves the pencil whole.
+inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMatrix<double>& stiffness,
+                                                          const Eigen::VectorXd& mass, Eigen::Index k,
+                                                          const Spectral_options& opt, const Component_copies& copies)
+{
+  const Eigen::Index n = mass.size();
+  // On a Laplacian of several components lambda = 0 once per component: those pairs are taken
+  // exactly (the M-normalised indicators, as the whole pencil's solve takes them), in place of
+  // each part's first ones (a class's first component: one; the rest: one per component).
+  const bool null_space = Null_space_deflation(stiffness, mass).count() > 0;
+  std::vector<Copied_part> parts;
+  for(const std::vector<int>& members : copies.classes) {
+    Copied_part part;
+    part.null_pairs = null_space ? 1 : 0;
+    for(const int c : members) part.placements.push_back(&copies.rows[std::size_t(c)]);
+    std::tie(part.stiffness, part.mass) = restricted_pencil(stiffness, mass, *part.placements.front(), copies.position);
+    const Eigen::Index count = Eigen::Index(members.size());
+    part.asked = (k + count - 1) / count + 1;
+    parts.push_back(std::move(part));
+  }
+  std::vector<int> rest;
+  if(!copies.singles.empty()) {
+    for(const int c : copies.singles) rest.insert(rest.end(), copies.rows[std::size_t(c)].begin(), copies.rows[std::size_t(c)].end());
+    std::sort(rest.begin(), rest.end());
+    std::vector<int> position(std::size_t(n), -1);
+    for(std::size_t i = 0; i < rest.size(); ++i) position[std::size_t(rest[i])] = int(i);
+    Copied_part part;
+    part.null_pairs = null_space ? Eigen::Index(copies.singles.size()) : 0;
+    part.placements.push_back(&rest);
+    std::tie(part.stiffness, part.mass) = restricted_pencil(stiffness, mass, rest, position);
+    part.asked = k + 1;
+    parts.push_back(std::move(part));
+  }
+
+  Spectral_pairs out;
+  out.dense = true;
+  struct Entry
+  {
+    double value;
+    int part;  // -1: the null vector of component `copy`
+    Eigen::Index pair;
+    int copy;
+  };
+  const auto by_value = [](const Entry& a, const Entry& b) { return a.value < b.value; };
+  std::vector<Entry> merged;
+  Eigen::VectorXd values;
+  Eigen::Index end = -1;  // the last member of lambda_{k-1}'s eigenspace among the merged values
+  double tau = 0;
+  for(int round = 0;; ++round) {
+    for(Copied_part& part : parts) {
+      const Eigen::Index size = part.mass.size();
+      part.asked = std::min(part.asked, size);
+      if(part.pairs.values.size() >= part.asked) continue;
+      if(part.asked >= size - 1 && size > opt.dense_limit) return std::nullopt;
+      // A small part is solved whole by the dense solver: a Krylov basis would span most of it.
+      const bool dense = size <= opt.dense_limit &&
+                         (size <= dense_part_size || 4 * (part.asked + extra_pairs(part.asked, opt)) >= size);
+      part.pairs = dense ? dense_smallest_eigenpairs(part.stiffness, part.mass, size)
+                         : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, opt);
+      out.operations += part.pairs.operations;
+      out.attempts = std::max(out.attempts, part.pairs.attempts);
+      out.dense = out.dense && part.pairs.dense;
+      part.complete_below = part.pairs.values.size() == size ? std::numeric_limits<double>::infinity()
+                                                             : start_of_last_cluster(part.pairs.values);
+    }
+    merged.clear();
+    if(null_space)
+      for(int c = 0; c < int(copies.rows.size()); ++c) merged.push_back({0.0, -1, 0, c});
+    double complete_below = std::numeric_limits<double>::infinity();
+    for(int p = 0; p < int(parts.size()); ++p) {
+      complete_below = std::min(complete_below, parts[std::size_t(p)].complete_below);
+      const Eigen::VectorXd& v = parts[std::size_t(p)].pairs.values;
+      for(Eigen::Index i = parts[std::size_t(p)].null_pairs; i < v.size(); ++i)
+        for(int c = 0; c < int(parts[std::size_t(p)].placements.size()); ++c) merged.push_back({v[i], p, i, c});
+    }
+    std::stable_sort(merged.begin(), merged.end(), by_value);
+    values.resize(Eigen::Index(merged.size()));
+    for(std::size_t i = 0; i < merged.size(); ++i) values[Eigen::Index(i)] = merged[i].value;
+    end = values.size() >= k ? cluster_end(values, k) : -1;
+    tau = end >= 0 ? 0.5 * (values[end] + values[end + 1]) : std::numeric_limits<double>::infinity();
+    if(end >= 0 && tau < complete_below) break;
+    bool more = false;
+    for(Copied_part& part : parts)
+      if(part.complete_below <= tau && part.pairs.values.size() < part.mass.size()) {
+        part.asked = 2 * part.pairs.values.size() + 2;
+        more = true;
+      }
+    if(!more || round == 3) return std::nullopt;
+  }
+  if(opt.check_completeness) {
+    Shifted_ldlt ldlt(stiffness, mass);
+    if(ldlt.factorize_at(tau) != end + 1) return std::nullopt;
+  }
+  const double scale = gap_scale(values);
+  Eigen::Index first = k - 1;  // the first member of lambda_{k-1}'s eigenspace
+  while(first > 0 && !gap_before(values, first, scale)) --first;
+  const Eigen::Index keep = end == k - 1 || first == 0 ? end + 1 : k + 1;
+
+  // Each part's leading pairs that the held set uses, to the end of the last one's eigenspace
+  // (an invariant subspace, for the Rayleigh-Ritz step); then those pairs on each copy that holds
+  // one of them.
+  std::vector<Spectral_pairs> leading(parts.size());
+  std::vector<Eigen::Index> used(parts.size(), 0);
+  for(Eigen::Index j = 0; j < keep; ++j)
+    if(const Entry& e = merged[std::size_t(j)]; e.part >= 0)
+      used[std::size_t(e.part)] = std::max(used[std::size_t(e.part)], e.pair + 1);
+  for(std::size_t p = 0; p < parts.size(); ++p) {
+    if(used[p] == 0) continue;
+    const Eigen::VectorXd& v = parts[p].pairs.values;
+    Eigen::Index count = used[p];
+    while(count < v.size() && !gap_before(v, count, gap_scale(v))) ++count;
+    leading[p].values = v.head(count);
+    leading[p].vectors = parts[p].pairs.vectors.leftCols(count);
+  }
+  std::vector<std::vector<Spectral_pairs>> on_copy(parts.size());
+  for(std::size_t p = 0; p < parts.size(); ++p) on_copy[p].resize(parts[p].placements.size());
+  for(Eigen::Index j = 0; j < keep; ++j) {
+    const Entry& e = merged[std::size_t(j)];
+    if(e.part < 0) continue;
+    Spectral_pairs& pairs = on_copy[std::size_t(e.part)][std::size_t(e.copy)];
+    if(pairs.values.size() > 0) continue;
+    const Copied_part& part = parts[std::size_t(e.part)];
+    if(e.copy == 0) {
+      pairs = leading[std::size_t(e.part)];
+    } else {
+      const auto copy = restricted_pencil(stiffness, mass, *part.placements[std::size_t(e.copy)], copies.position);
+      pairs = pairs_on_copy(leading[std::size_t(e.part)], copy.first, copy.second);
+    }
+  }
+  std::vector<Entry> held(merged.begin(), merged.begin() + keep);
+  for(Entry& e : held)
+    if(e.part >= 0) e.value = on_copy[std::size_t(e.part)][std::size_t(e.copy)].values[e.pair];
+  std::stable_sort(held.begin(), held.end(), by_value);
+  out.values.resize(keep);
+  out.vectors = Eigen::MatrixXd::Zero(n, keep);
+  for(Eigen::Index j = 0; j < keep; ++j) {
+    const Entry& e = held[std::size_t(j)];
+    out.values[j] = e.value;
+    if(e.part < 0) {
+      const std::vector<int>& rows = copies.rows[std::size_t(e.copy)];
+      double component_mass = 0;
+      for(const int r : rows) component_mass += mass[r];
+      for(const int r : rows) out.vectors(r, j) = 1.0 / std::sqrt(component_mass);
+      continue;
+    }
+    const std::vector<int>& rows = *parts[std::size_t(e.part)].placements[std::size_t(e.copy)];
+    const Eigen::MatrixXd& vectors = on_copy[std::size_t(e.part)][std::size_t(e.copy)].vectors;
+    for(std::size_t i = 0; i < rows.size(); ++i) out.vectors(rows[i], j) = vectors(Eigen::Index(i), e.pair);
+  }
+  return out;
+}
+
+inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& stiffness, const Eigen::VectorXd& mass,
+                                          Eigen::Index k, const Spectral_options& opt)
+{
+  const Eigen::Index n = mass.size();
+  if(k < 1 || k > n)
+    throw std::invalid_argument("the number of eigenpairs k = " + std::to_string(k) + " is outside [1, " +
+                                std::to_string(n) + "]");
+  if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
+  if(opt.solve_copies_once)
+    if(const std::optional<Component_copies> copies = find_component_copies(stiffness, mass))
+      if(std::optional<Spectral_pairs> pairs = eigenpairs_of_copies(stiffness, mass, k, opt, *copies))
+        return std::move(*pairs);
+  return eigenpairs_of_pencil(stiffness, mass, k, opt);
 }
 
 } // namespace internal
