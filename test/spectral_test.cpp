@@ -95,6 +95,22 @@ std::string case_label(lapmesh::Laplacian lap, const char* solver, Eigen::Index 
   return std::string(lapmesh::to_string(lap)) + " " + solver + " k=" + std::to_string(k);
 }
 
+/// `part` appended to `soup` (a separate component), scaled and moved by (dx, dy, 0), its
+/// points listed from the `rotate`-th on (the same part under another numbering).
+void append_part(lapmesh::Triangle_soup& soup, const lapmesh::Triangle_soup& part, double scale, double dx,
+                 double dy = 0.0, int rotate = 0)
+{
+  const int off = int(soup.points.size()), count = int(part.points.size());
+  for(int i = 0; i < count; ++i) {
+    const auto& p = part.points[std::size_t((i + rotate) % count)];
+    soup.points.push_back({scale * p[0] + dx, scale * p[1] + dy, scale * p[2]});
+  }
+  for(auto t : part.triangles) {
+    for(auto& v : t) v = off + (v - rotate % count + count) % count;
+    soup.triangles.push_back(t);
+  }
+}
+
 const lapmesh::Spectral_basis& sphere_basis()
 {
   static const lapmesh::Spectral_basis b =
@@ -160,13 +176,8 @@ TEST(Spectral, OneZeroEigenvaluePerComponent)
 {
   // Three components: two spheres and a plane patch with boundary (Neumann condition).
   auto soup = lapmesh::icosphere(3, 1.0);
-  auto add = [&](const lapmesh::Triangle_soup& s, double dx) {
-    const std::size_t off = soup.points.size();
-    for(auto p : s.points) soup.points.push_back({p[0] + dx, p[1], p[2]});
-    for(auto t : s.triangles) soup.triangles.push_back({int(t[0] + off), int(t[1] + off), int(t[2] + off)});
-  };
-  add(lapmesh::icosphere(3, 0.7), 5);
-  add(lapmesh::plane_patch(20, 0.1), -5);
+  append_part(soup, lapmesh::icosphere(3, 0.7), 1.0, 5);
+  append_part(soup, lapmesh::plane_patch(20, 0.1), 1.0, -5);
   const Mesh m = to_mesh(soup);
   for(auto lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {
     const auto b = lapmesh::Spectral_basis::compute(m, 8, LP::laplacian(lap));
@@ -596,13 +607,8 @@ TEST(Spectral, DeflatedRunsInTheFactorsOrderEqualThoseInTheMatrixs)
   // the loads before the solve and the means after it. The two must give the same pairs.
   namespace LI = lapmesh::internal;
   auto soup = lapmesh::bumpy_sphere(3);
-  const auto add = [&](const lapmesh::Triangle_soup& part, double dx) {
-    const int off = int(soup.points.size());
-    for(auto p : part.points) soup.points.push_back({p[0] + dx, p[1], p[2]});
-    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
-  };
-  add(lapmesh::torus(40, 24, 1.0, 0.3), 4.0);
-  add(lapmesh::plane_patch(30, 0.1), -4.0);
+  append_part(soup, lapmesh::torus(40, 24, 1.0, 0.3), 1.0, 4.0);
+  append_part(soup, lapmesh::plane_patch(30, 0.1), 1.0, -4.0);
   // The components' vertices interleaved: numbered one component after another, they keep
   // their places in the factor's order (AMD's postorder), and a null space removed with the
   // matrix's component labels there would pass unnoticed. Vertex v becomes (7919 v) mod n
@@ -818,19 +824,14 @@ namespace {
 lapmesh::Triangle_soup many_components()
 {
   lapmesh::Triangle_soup soup;
-  auto add = [&](const lapmesh::Triangle_soup& s, double scale, double dx, double dy) {
-    const int off = int(soup.points.size());
-    for(auto p : s.points) soup.points.push_back({scale * p[0] + dx, scale * p[1] + dy, scale * p[2]});
-    for(auto t : s.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
-  };
   for(int i = 0; i < 27; ++i) {
     lapmesh::Triangle_soup tet;
     const double a = 0.1 * (i % 5), b = 0.07 * (i % 3);
     tet.points = {{0, 0, 0}, {1 + a, 0, 0}, {b, 1, 0}, {0.3, 0.2 + a, 1 - b}};
     tet.triangles = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {2, 0, 3}};
-    add(tet, 0.5 + 0.05 * i, 3.0 * i, 0);
+    append_part(soup, tet, 0.5 + 0.05 * i, 3.0 * i, 0);
   }
-  for(int i = 0; i < 3; ++i) add(lapmesh::bumpy_sphere(2), 1.0 + 0.3 * i, 3.0 * i, 5);
+  for(int i = 0; i < 3; ++i) append_part(soup, lapmesh::bumpy_sphere(2), 1.0 + 0.3 * i, 3.0 * i, 5);
   return soup;
 }
 
@@ -887,12 +888,8 @@ lapmesh::Triangle_soup identical_spheres(int copies, bool staggered = false, int
 {
   lapmesh::Triangle_soup soup;
   const lapmesh::Triangle_soup part = lapmesh::icosphere(level, 1.0);
-  for(int copy = 0; copy < copies; ++copy) {
-    const int off = int(soup.points.size());
-    const double y = staggered ? 0.01 * copy * copy : 0.0;
-    for(auto p : part.points) soup.points.push_back({p[0] + 3.0 * copy, p[1] + y, p[2]});
-    for(auto t : part.triangles) soup.triangles.push_back({t[0] + off, t[1] + off, t[2] + off});
-  }
+  for(int copy = 0; copy < copies; ++copy)
+    append_part(soup, part, 1.0, 3.0 * copy, staggered ? 0.01 * copy * copy : 0.0);
   return soup;
 }
 } // namespace
@@ -1046,21 +1043,6 @@ TEST(Spectral, PartsOfFewDistinctValuesGiveNoNullVectorsAsPairs)
 
 namespace {
 
-/// `part` appended to `soup`, scaled and moved by (dx, 0, 0), its points listed from the
-/// `rotate`-th on (the same part under another numbering).
-void append_part(lapmesh::Triangle_soup& soup, const lapmesh::Triangle_soup& part, double scale, double dx, int rotate = 0)
-{
-  const int off = int(soup.points.size()), count = int(part.points.size());
-  for(int i = 0; i < count; ++i) {
-    const auto& p = part.points[std::size_t((i + rotate) % count)];
-    soup.points.push_back({scale * p[0] + dx, scale * p[1], scale * p[2]});
-  }
-  for(auto t : part.triangles) {
-    for(auto& v : t) v = off + (v - rotate % count + count) % count;
-    soup.triangles.push_back(t);
-  }
-}
-
 /// Every eigenvalue of each distinct part (a dense solve), repeated once per copy, ascending.
 Eigen::VectorXd spectrum_of_parts(const std::vector<std::pair<lapmesh::Triangle_soup, int>>& parts)
 {
@@ -1096,7 +1078,7 @@ TEST(Spectral, ComponentCopiesAreFoundToRoundOffOnly)
   lapmesh::Triangle_soup mixed;
   for(int c = 0; c < 3; ++c) append_part(mixed, sphere, 1.0, 3.0 * c);
   append_part(mixed, sphere, 1.0 + 1e-6, 9.0);
-  append_part(mixed, sphere, 1.0, 12.0, 1);
+  append_part(mixed, sphere, 1.0, 12.0, 0.0, 1);
   const auto three = copies_in(mixed);
   ASSERT_TRUE(three);
   ASSERT_EQ(three->classes.size(), 1u);
@@ -1114,8 +1096,8 @@ TEST(Spectral, ComponentCopiesAreFoundToRoundOffOnly)
 TEST(Spectral, CopiesOfAPartAreSolvedOnce)
 {
   // 100 icospheres of 162 vertices staggered along a parabola: lambda = 0 a hundred times, then
-  // 300 copies of l = 1. Solved whole, the pencil failed at k = 200 ("repeated eigenvalues
-  // missed after 4 attempts") and took 10 s for 30 such spheres at k = 300. One sphere is solved
+  // 300 copies of l = 1. Solved whole in one run, the pencil failed at k = 200 ("repeated
+  // eigenvalues missed after 4 attempts"), and the bands took seconds. One sphere is solved
   // (densely, at this size: no Krylov solve), its pairs carried to the other copies. k = 50 falls
   // in the null space (held whole), k = 200 inside l = 1 (held to one past it), k = 400 at its end.
   const auto pencil = lapmesh::laplacian_pencil(to_mesh(identical_spheres(100, true, 2)));
@@ -1151,7 +1133,7 @@ TEST(Spectral, CopiesBesideDistinctPartsAreMergedAndVerified)
   append_part(soup, lapmesh::bumpy_sphere(2), 1.0, 40.0);
   append_part(soup, small, 1.3, 45.0);
   append_part(soup, small, 1.0, 50.0);
-  append_part(soup, small, 1.0, 55.0, 7);
+  append_part(soup, small, 1.0, 55.0, 0.0, 7);
   const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
   lapmesh::Triangle_soup scaled;
   append_part(scaled, small, 1.3, 0.0);
