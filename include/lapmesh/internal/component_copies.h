@@ -64,6 +64,21 @@ inline bool same_component(const Eigen::SparseMatrix<double>& S, const Eigen::Ve
 
 } // namespace copies_detail
 
+/// Whether every row of S sums to zero to round-off: a Laplacian, whose null space holds the
+/// constants on each component.
+inline bool rows_sum_to_zero(const Eigen::SparseMatrix<double>& S)
+{
+  for(Eigen::Index j = 0; j < S.outerSize(); ++j) {
+    double sum = 0, magnitude = 0;  // S is symmetric: column j is row j
+    for(Eigen::SparseMatrix<double>::InnerIterator it(S, j); it; ++it) {
+      sum += it.value();
+      magnitude += std::abs(it.value());
+    }
+    if(!(std::abs(sum) <= 1e-10 * magnitude)) return false;
+  }
+  return true;
+}
+
 /// The classes of copies among the components of (S, M); none when no component has a copy
 /// (a connected mesh among them). S is symmetric, column-major; the test is O(nnz(S)) per pair
 /// of components compared, which only components of equal size and number of entries are.

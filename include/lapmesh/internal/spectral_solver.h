@@ -117,16 +117,11 @@ public:
                        Eigen::Index min_components = 2)
   {
     const Eigen::Index n = stiffness.rows();
+    if(!rows_sum_to_zero(stiffness)) return;  // not a Laplacian: no known null space
     Smallest_root_sets<int> components(static_cast<int>(n));  // S's indices are int
-    for(Eigen::Index j = 0; j < stiffness.outerSize(); ++j) {
-      double row_sum = 0, row_abs = 0;  // S is symmetric: column j is row j
-      for(Eigen::SparseMatrix<double>::InnerIterator it(stiffness, j); it; ++it) {
-        row_sum += it.value();
-        row_abs += std::abs(it.value());
+    for(Eigen::Index j = 0; j < stiffness.outerSize(); ++j)
+      for(Eigen::SparseMatrix<double>::InnerIterator it(stiffness, j); it; ++it)
         if(it.value() != 0 && it.index() != j) components.join(int(it.index()), int(j));
-      }
-      if(!(std::abs(row_sum) <= 1e-10 * row_abs)) return;  // not a Laplacian: no known null space
-    }
     int c = 0;
     const std::vector<int> label = components.labels(c);
     m_component = Eigen::Map<const Eigen::VectorXi>(label.data(), n);
@@ -722,6 +717,14 @@ inline Eigen::Index cluster_end(const Eigen::VectorXd& v, Eigen::Index k)
   return -1;
 }
 
+/// The first member of the eigenspace of v[i] among ascending values (gap_before()).
+inline Eigen::Index eigenspace_start(const Eigen::VectorXd& v, Eigen::Index i)
+{
+  const double scale = gap_scale(v);
+  while(i > 0 && !gap_before(v, i, scale)) --i;
+  return i;
+}
+
 /// How close to lambda_{count-1}, relative, its eigenspace must lie for a partial one to be
 /// accepted (leading_values_are_complete()).
 constexpr double partial_eigenspace_margin = 1e-9;
@@ -1159,6 +1162,19 @@ inline Eigen::Index extra_pairs(Eigen::Index k, const Spectral_options& opt)
   return opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
 }
 
+/// Up to this many rows, a pencil is small: the dense solver takes milliseconds there, about a
+/// Krylov run's time over k, and a Krylov basis spans much of so small a space, where a run can
+/// return a pair whose residual is far above the dense solve's round-off (doc/spectral.md,
+/// "Small problems").
+constexpr Eigen::Index small_pencil_size = 200;
+
+/// Whether a pencil of n rows is solved by the dense solver for `wanted` pairs: a small pencil,
+/// or nearly the whole spectrum.
+inline bool solved_densely(Eigen::Index n, Eigen::Index wanted, const Spectral_options& opt)
+{
+  return n <= opt.dense_limit && (n <= small_pencil_size || 2 * wanted >= n);
+}
+
 /// The retries of a shift-invert solve for the k smallest pairs, c of them the null space's:
 /// Krylov runs, each asking for more pairs than the last (and, with the default block size, a
 /// larger block), until the inertia counts `below(tau)` verify them. `run(m, run_opt, spent)` is
@@ -1236,7 +1252,7 @@ Spectral_pairs smallest_eigenpairs_with(const Eigen::SparseMatrix<double>& stiff
 
   const Eigen::Index extra = extra_pairs(k, opt);
   // Small problems, or nearly the whole spectrum: Krylov needs m < n, use a dense solver.
-  if(k + extra >= n / 2 && n <= opt.dense_limit) {
+  if(solved_densely(n, k + extra, opt)) {
     report("dense eigen-solver", 0);
     return dense_smallest_eigenpairs(stiffness, mass, std::min<Eigen::Index>(n, k + extra));
   }
@@ -1422,7 +1438,7 @@ inline Spectral_pairs eigenpairs_of_pencil(const Eigen::SparseMatrix<double>& st
   // very large k they also keep the memory near the result's own.
   const bool bands_by_default = k >= 200 && (175 * k > n || k > 1000);
   const int band_size = opt.band_size >= 0 ? opt.band_size : (bands_by_default ? 40 : 0);
-  if(band_size > 0 && k > band_size && !(2 * k >= n && n <= opt.dense_limit))
+  if(band_size > 0 && k > band_size && !solved_densely(n, k, opt))
   {
     Spectral_options o = opt;
     o.band_size = band_size;
@@ -1452,18 +1468,6 @@ struct Copied_part
   Spectral_pairs pairs;
   double complete_below = 0;  ///< every eigenvalue of the part below it is held
 };
-
-/// Parts of up to this many vertices are solved by the dense solver (eigenpairs_of_copies()).
-constexpr Eigen::Index dense_part_size = 200;
-
-/// The first value of the last eigenspace among ascending values (gap_before()).
-inline double start_of_last_cluster(const Eigen::VectorXd& v)
-{
-  const double scale = gap_scale(v);
-  Eigen::Index i = v.size() - 1;
-  while(i > 0 && !gap_before(v, i, scale)) --i;
-  return v[i];
-}
 
 /// The pairs of a class's first component carried to another copy: a Rayleigh-Ritz step on the
 /// copy's own S and M (which agree with the first's to round-off) in the span of the vectors,
@@ -1502,15 +1506,17 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
   // On a Laplacian of several components lambda = 0 once per component: those pairs are taken
   // exactly (the M-normalised indicators, as the whole pencil's solve takes them), in place of
   // each part's first ones (a class's first component: one; the rest: one per component).
-  const bool null_space = Null_space_deflation(stiffness, mass).count() > 0;
+  const bool null_space = rows_sum_to_zero(stiffness);
   std::vector<Copied_part> parts;
   for(const std::vector<int>& members : copies.classes) {
     Copied_part part;
     part.null_pairs = null_space ? 1 : 0;
     for(const int c : members) part.placements.push_back(&copies.rows[std::size_t(c)]);
     std::tie(part.stiffness, part.mass) = restricted_pencil(stiffness, mass, *part.placements.front(), copies.position);
-    const Eigen::Index count = Eigen::Index(members.size());
-    part.asked = (k + count - 1) / count + 1;
+    // Its share of the k pairs and a quarter more: a symmetric part's last group of values
+    // often crosses the bare share, and a second round costs more than the margin.
+    const Eigen::Index count = Eigen::Index(members.size()), share = (k + count - 1) / count;
+    part.asked = share + 1 + share / 4;
     parts.push_back(std::move(part));
   }
   std::vector<int> rest;
@@ -1547,16 +1553,18 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
       part.asked = std::min(part.asked, size);
       if(part.pairs.values.size() >= part.asked) continue;
       if(part.asked >= size - 1 && size > opt.dense_limit) return std::nullopt;
-      // A small part is solved whole by the dense solver: a Krylov basis would span most of it.
+      // A small part, or one a Krylov basis would mostly span, is solved whole by the dense
+      // solver: its every eigenspace is then complete, and no second round asks it again.
       const bool dense = size <= opt.dense_limit &&
-                         (size <= dense_part_size || 4 * (part.asked + extra_pairs(part.asked, opt)) >= size);
+                         (size <= small_pencil_size || 4 * (part.asked + extra_pairs(part.asked, opt)) >= size);
       part.pairs = dense ? dense_smallest_eigenpairs(part.stiffness, part.mass, size)
                          : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, opt);
       out.operations += part.pairs.operations;
       out.attempts = std::max(out.attempts, part.pairs.attempts);
       out.dense = out.dense && part.pairs.dense;
-      part.complete_below = part.pairs.values.size() == size ? std::numeric_limits<double>::infinity()
-                                                             : start_of_last_cluster(part.pairs.values);
+      const Eigen::VectorXd& v = part.pairs.values;
+      part.complete_below =
+        v.size() == size ? std::numeric_limits<double>::infinity() : v[eigenspace_start(v, v.size() - 1)];
     }
     merged.clear();
     if(null_space)
@@ -1586,10 +1594,7 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
     Shifted_ldlt ldlt(stiffness, mass);
     if(ldlt.factorize_at(tau) != end + 1) return std::nullopt;
   }
-  const double scale = gap_scale(values);
-  Eigen::Index first = k - 1;  // the first member of lambda_{k-1}'s eigenspace
-  while(first > 0 && !gap_before(values, first, scale)) --first;
-  const Eigen::Index keep = end == k - 1 || first == 0 ? end + 1 : k + 1;
+  const Eigen::Index keep = end == k - 1 || eigenspace_start(values, k - 1) == 0 ? end + 1 : k + 1;
 
   // Each part's leading pairs that the held set uses, to the end of the last one's eigenspace
   // (an invariant subspace, for the Rayleigh-Ritz step); then those pairs on each copy that holds
@@ -1602,8 +1607,8 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
   for(std::size_t p = 0; p < parts.size(); ++p) {
     if(used[p] == 0) continue;
     const Eigen::VectorXd& v = parts[p].pairs.values;
-    Eigen::Index count = used[p];
-    while(count < v.size() && !gap_before(v, count, gap_scale(v))) ++count;
+    const Eigen::Index last = cluster_end(v, used[p]);
+    const Eigen::Index count = last >= 0 ? last + 1 : v.size();
     leading[p].values = v.head(count);
     leading[p].vectors = parts[p].pairs.vectors.leftCols(count);
   }
