@@ -2,7 +2,7 @@
 // standardised pencil, SimplicialLLT or CHOLMOD) against Spectra's SymGEigsShiftSolver
 // (ShiftInvert mode) with Eigen's SimplicialLDLT (the usual public set-up) and with Spectra's own
 // SymShiftInvert operator (a SparseLU), on the same pencils, in one run so that ratios are
-// comparable.
+// comparable; and, on meshes of copies, each class of copies solved once against the whole pencil.
 // Meshes: CGAL's data set, Loop-subdivided to reach the sizes (closed or with boundary).
 //   ./spectral_benchmark --benchmark_filter=...   (peak memory: /usr/bin/time -v, one filter at a time)
 #include "test_helpers.h"
@@ -21,6 +21,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <limits>
 #include <map>
 #include <stdexcept>
 
@@ -249,6 +250,49 @@ void BM_banded(benchmark::State& state)
   opt.band_size = int(state.range(2));
   time_basis(state, opt);
 }
+// A mesh of copies (an assembly's repeated parts): case range(0) placed range(1) times side by
+// side, not scaled, k = range(2); each class of copies solved once (range(3) = 1, the default)
+// or the whole pencil (0).
+const lapmesh::Laplacian_pencil& copies_pencil(int id, int copies)
+{
+  static std::map<std::pair<int, int>, lapmesh::Laplacian_pencil> cache;
+  auto it = cache.find({id, copies});
+  if(it != cache.end()) return it->second;
+  lapmesh_test::Mesh one, all;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), one);
+  if(cases[id].loop_steps > 0)
+    CGAL::Subdivision_method_3::Loop_subdivision(one, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
+  double low = std::numeric_limits<double>::infinity(), high = -low;
+  for(const auto v : one.vertices()) {
+    low = std::min(low, one.point(v).x());
+    high = std::max(high, one.point(v).x());
+  }
+  for(int c = 0; c < copies; ++c) {
+    lapmesh_test::Mesh part = one;
+    for(const auto v : part.vertices()) {
+      const lapmesh_test::Point& q = part.point(v);
+      part.point(v) = lapmesh_test::Point(q.x() + 1.5 * (high - low) * c, q.y(), q.z());
+    }
+    all.join(part);
+  }
+  return cache.emplace(std::make_pair(id, copies), lapmesh::laplacian_pencil(all)).first->second;
+}
+void BM_copies(benchmark::State& state)
+{
+  const auto& p = copies_pencil(int(state.range(0)), int(state.range(1)));
+  lapmesh::Spectral_options opt;
+  opt.solve_copies_once = state.range(3) != 0;
+  long long ops = 0;
+  for(auto _ : state) {
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(2), opt);
+    ops = b.operations();
+    benchmark::DoNotOptimize(b.eigenvectors().data());
+  }
+  state.counters["n"] = double(p.mass.size());
+  state.counters["solves"] = double(ops);
+}
+BENCHMARK(BM_copies)->ArgsProduct({{4}, {2}, {30, 100}, {1, 0}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_copies)->ArgsProduct({{0}, {12}, {30, 100}, {1, 0}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_block)->ArgsProduct({{2}, {30}, {2, 3, 4, 6}, {20, 25, 30}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_block)->ArgsProduct({{3}, {100}, {4, 6, 8}, {15, 20, 25}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_block)->ArgsProduct({{3}, {300}, {4, 8}, {15, 17, 20}})->Unit(benchmark::kMillisecond)->Iterations(1);
