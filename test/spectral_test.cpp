@@ -1196,6 +1196,19 @@ TEST(Spectral, CopiesBesideDistinctPartsAreMergedAndVerified)
     expect_held_set_ends_right(pencil, b, k, exact, what);
     if(k != 16 && !b.splits_eigenspace(k)) expect_verified_spectrum(pencil, b, k, what);
   }
+  // The parts' solves report as one solve: the time from its start, the solves adding up, and
+  // the inertia count of the whole pencil last, with every solve counted.
+  std::vector<lapmesh::Spectral_progress> reports;
+  lapmesh::Spectral_options watched;
+  watched.progress = [&](const lapmesh::Spectral_progress& p) { reports.push_back(p); };
+  const auto b = lapmesh::Spectral_basis::from_pencil(pencil, 60, watched);
+  ASSERT_GE(reports.size(), 2u);
+  for(std::size_t i = 1; i < reports.size(); ++i) EXPECT_LE(reports[i - 1].elapsed_seconds, reports[i].elapsed_seconds) << i;
+  EXPECT_EQ(std::string(reports.back().stage), "checking completeness");
+  EXPECT_EQ(reports.back().operations, b.operations());
+  EXPECT_GT(std::count_if(reports.begin(), reports.end(),
+                          [](const lapmesh::Spectral_progress& p) { return std::string(p.stage) == "factorising"; }),
+            1);
 }
 
 namespace {

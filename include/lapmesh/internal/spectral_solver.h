@@ -1162,10 +1162,10 @@ inline Eigen::Index extra_pairs(Eigen::Index k, const Spectral_options& opt)
   return opt.extra >= 0 ? opt.extra : std::max<Eigen::Index>(6, k / 10);
 }
 
-/// Up to this many rows, a pencil is small: the dense solver takes milliseconds there, about a
-/// Krylov run's time over k, and a Krylov basis spans much of so small a space, where a run can
-/// return a pair whose residual is far above the dense solve's round-off (doc/spectral.md,
-/// "Small problems").
+/// Up to this many rows, a pencil is small: the dense solver takes milliseconds there, on
+/// average over k as long as a Krylov run, and a Krylov basis spans much of so small a space,
+/// where a run can return a pair whose residual is far above the dense solve's round-off
+/// (doc/spectral.md, "Small problems").
 constexpr Eigen::Index small_pencil_size = 200;
 
 /// Whether a pencil of n rows is solved by the dense solver for `wanted` pairs: a small pencil,
@@ -1535,6 +1535,15 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
 
   Spectral_pairs out;
   out.dense = true;
+  // The parts' solves report as one solve: their time from this call's start, their solves
+  // after those of the parts before them.
+  const auto start = std::chrono::steady_clock::now();
+  const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  Spectral_options part_opt = opt;
+  if(opt.progress)
+    part_opt.progress = [&](const Spectral_progress& p) {
+      opt.progress(Spectral_progress{p.stage, out.operations + p.operations, p.attempt, elapsed()});
+    };
   struct Entry
   {
     double value;
@@ -1558,7 +1567,7 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
       const bool dense = size <= opt.dense_limit &&
                          (size <= small_pencil_size || 4 * (part.asked + extra_pairs(part.asked, opt)) >= size);
       part.pairs = dense ? dense_smallest_eigenpairs(part.stiffness, part.mass, size)
-                         : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, opt);
+                         : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, part_opt);
       out.operations += part.pairs.operations;
       out.attempts = std::max(out.attempts, part.pairs.attempts);
       out.dense = out.dense && part.pairs.dense;
@@ -1591,6 +1600,7 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
     if(!more || round == 3) return std::nullopt;
   }
   if(opt.check_completeness) {
+    if(opt.progress) opt.progress(Spectral_progress{"checking completeness", out.operations, 1, elapsed()});
     Shifted_ldlt ldlt(stiffness, mass);
     if(ldlt.factorize_at(tau) != end + 1) return std::nullopt;
   }
