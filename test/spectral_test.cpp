@@ -1161,6 +1161,7 @@ TEST(Spectral, CopiesOfAPartAreSolvedOnce)
     expect_pairs_match(pencil, b, exact, exact[100], what);
     EXPECT_EQ(b.splits_eigenspace(k), k != 400) << what;
     expect_held_set_ends_right(pencil, b, k, exact, what);
+    EXPECT_EQ(eigenvalues_below(pencil, just_above(exact, 399)), 400) << what;  // l = 1 ends at 399
   }
   expect_verified_spectrum(pencil, *basis_or_failure(pencil, 400, lapmesh::Spectral_options(), "k=400"), 400, "k=400");
 }

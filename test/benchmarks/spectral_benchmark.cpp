@@ -40,15 +40,20 @@ const Case cases[] = {{"ChineseDragon-10kv.off", 0}, {"armadillo.off", 1},      
                       {"refined_elephant.off", 0},   {"bunny00.off", 0},         {"mannequin-devil.off", 1},
                       {"camel.off", 1}};
 
+lapmesh_test::Mesh case_mesh(int id)
+{
+  lapmesh_test::Mesh m;
+  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), m);
+  if(cases[id].loop_steps > 0)
+    CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
+  return m;
+}
 const lapmesh::Laplacian_pencil& pencil(int id)
 {
   static std::map<int, lapmesh::Laplacian_pencil> cache;
   auto it = cache.find(id);
   if(it != cache.end()) return it->second;
-  lapmesh_test::Mesh m;
-  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), m);
-  if(cases[id].loop_steps > 0)
-    CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
+  const lapmesh_test::Mesh m = case_mesh(id);
   // Scale to unit area, as the public comparisons do.
   auto p = lapmesh::laplacian_pencil(m);
   const double area = p.mass.sum();
@@ -215,17 +220,22 @@ void BM_breakdown(benchmark::State& state)
   state.counters["solve_ms"] = 1e3 * t_solve;
   state.counters["nnz_L"] = nnz;
 }
-// Times Spectral_basis::from_pencil on case range(0) for k = range(1) with `opt`.
-void time_basis(benchmark::State& state, const lapmesh::Spectral_options& opt)
+// Times Spectral_basis::from_pencil on `p` for k pairs with `opt`.
+void time_basis(benchmark::State& state, const lapmesh::Laplacian_pencil& p, Eigen::Index k,
+                const lapmesh::Spectral_options& opt)
 {
-  const auto& p = pencil(int(state.range(0)));
   long long ops = 0;
   for(auto _ : state) {
-    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(1), opt);
+    const auto b = lapmesh::Spectral_basis::from_pencil(p, k, opt);
     ops = b.operations();
   }
   state.counters["n"] = double(p.mass.size());
   state.counters["solves"] = double(ops);
+}
+// The same on case range(0) for k = range(1).
+void time_basis(benchmark::State& state, const lapmesh::Spectral_options& opt)
+{
+  time_basis(state, pencil(int(state.range(0))), state.range(1), opt);
 }
 // Krylov basis size: ncv_factor = range(2) / 10.
 void BM_ncv(benchmark::State& state)
@@ -258,10 +268,8 @@ const lapmesh::Laplacian_pencil& copies_pencil(int id, int copies)
   static std::map<std::pair<int, int>, lapmesh::Laplacian_pencil> cache;
   auto it = cache.find({id, copies});
   if(it != cache.end()) return it->second;
-  lapmesh_test::Mesh one, all;
-  lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh(cases[id].file), one);
-  if(cases[id].loop_steps > 0)
-    CGAL::Subdivision_method_3::Loop_subdivision(one, CGAL::parameters::number_of_iterations(cases[id].loop_steps));
+  const lapmesh_test::Mesh one = case_mesh(id);
+  lapmesh_test::Mesh all;
   double low = std::numeric_limits<double>::infinity(), high = -low;
   for(const auto v : one.vertices()) {
     low = std::min(low, one.point(v).x());
@@ -279,17 +287,9 @@ const lapmesh::Laplacian_pencil& copies_pencil(int id, int copies)
 }
 void BM_copies(benchmark::State& state)
 {
-  const auto& p = copies_pencil(int(state.range(0)), int(state.range(1)));
   lapmesh::Spectral_options opt;
   opt.solve_copies_once = state.range(3) != 0;
-  long long ops = 0;
-  for(auto _ : state) {
-    const auto b = lapmesh::Spectral_basis::from_pencil(p, state.range(2), opt);
-    ops = b.operations();
-    benchmark::DoNotOptimize(b.eigenvectors().data());
-  }
-  state.counters["n"] = double(p.mass.size());
-  state.counters["solves"] = double(ops);
+  time_basis(state, copies_pencil(int(state.range(0)), int(state.range(1))), state.range(2), opt);
 }
 BENCHMARK(BM_copies)->ArgsProduct({{4}, {2}, {30, 100}, {1, 0}})->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_copies)->ArgsProduct({{0}, {12}, {30, 100}, {1, 0}})->Unit(benchmark::kMillisecond)->Iterations(1);

@@ -1562,10 +1562,10 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
       part.asked = std::min(part.asked, size);
       if(part.pairs.values.size() >= part.asked) continue;
       if(part.asked >= size - 1 && size > opt.dense_limit) return std::nullopt;
-      // A small part, or one a Krylov basis would mostly span, is solved whole by the dense
-      // solver: its every eigenspace is then complete, and no second round asks it again.
-      const bool dense = size <= opt.dense_limit &&
-                         (size <= small_pencil_size || 4 * (part.asked + extra_pairs(part.asked, opt)) >= size);
+      // A part solved densely for twice the pairs a run would seek (a small part, or one a
+      // Krylov basis would mostly span) is solved whole: its every eigenspace is then complete,
+      // and no second round asks it again.
+      const bool dense = solved_densely(size, 2 * (part.asked + extra_pairs(part.asked, opt)), opt);
       part.pairs = dense ? dense_smallest_eigenpairs(part.stiffness, part.mass, size)
                          : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, part_opt);
       out.operations += part.pairs.operations;
