@@ -1212,6 +1212,44 @@ TEST(Spectral, CopiesBesideDistinctPartsAreMergedAndVerified)
             1);
 }
 
+TEST(Spectral, ASolveWholeAfterTheCopiesPathGoesOnFromIt)
+{
+  // Two icospheres of 42 vertices beside a third scaled by 1.3, the dense solver limited to 30
+  // rows: the copies are solved by a Krylov run, then the scaled sphere would need the dense
+  // solver past its limit, and the pencil is solved whole. Its reports go on from the copies
+  // path's time and solves, and its count includes them.
+  lapmesh::Triangle_soup soup;
+  const lapmesh::Triangle_soup small = lapmesh::icosphere(1, 1.0);
+  append_part(soup, small, 1.0, 0.0);
+  append_part(soup, small, 1.0, 3.0);
+  append_part(soup, small, 1.3, 6.0);
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(soup));
+  lapmesh::Triangle_soup scaled;
+  append_part(scaled, small, 1.3, 0.0);
+  const Eigen::VectorXd exact = spectrum_of_parts({{small, 2}, {scaled, 1}});
+  std::vector<lapmesh::Spectral_progress> reports;
+  lapmesh::Spectral_options watched;
+  watched.dense_limit = 30;
+  watched.progress = [&](const lapmesh::Spectral_progress& p) { reports.push_back(p); };
+  const auto b = lapmesh::Spectral_basis::from_pencil(pencil, 40, watched);
+  ASSERT_GE(b.size(), 40);
+  expect_pairs_match(pencil, b, exact, exact[3], "copies, then whole");
+  const auto is = [](const lapmesh::Spectral_progress& p, const char* stage) { return std::string(p.stage) == stage; };
+  const auto whole_start = std::find_if(reports.begin() + 1, reports.end(), [&](const auto& p) { return is(p, "factorising"); });
+  ASSERT_NE(whole_start, reports.end()) << "one solve of the copies, then one of the whole pencil";
+  const long long copies_solves = whole_start[-1].operations;
+  EXPECT_TRUE(is(whole_start[-1], "checking completeness"));
+  EXPECT_GT(copies_solves, 0);
+  EXPECT_EQ(whole_start->operations, copies_solves);
+  for(std::size_t i = 1; i < reports.size(); ++i) {
+    EXPECT_LE(reports[i - 1].elapsed_seconds, reports[i].elapsed_seconds) << i;
+    if(reports[i].attempt == reports[i - 1].attempt) { EXPECT_LE(reports[i - 1].operations, reports[i].operations) << i; }
+  }
+  EXPECT_TRUE(is(reports.back(), "checking completeness"));
+  EXPECT_EQ(reports.back().operations, b.operations());
+  EXPECT_GT(b.operations(), copies_solves);
+}
+
 namespace {
 
 /// `spikes` thin tetrahedra sharing one apex at the origin, their bases turning once around it

@@ -1497,12 +1497,15 @@ inline Spectral_pairs pairs_on_copy(const Spectral_pairs& first, const Eigen::Sp
 /// twice as many, up to four rounds. The held set ends at the gap, or one past lambda_{k-1}
 /// inside its eigenspace (as a run's, verified_count()), or after the whole null space. None
 /// when a part needs the dense solver past its limit, the rounds run out, or the count
-/// disagrees with the merge: the caller then solves the pencil whole.
+/// disagrees with the merge: the caller then solves the pencil whole. `operations` receives the
+/// shift-invert solves spent, held or not (a solve whole after it counts them too).
 inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMatrix<double>& stiffness,
                                                           const Eigen::VectorXd& mass, Eigen::Index k,
-                                                          const Spectral_options& opt, const Component_copies& copies)
+                                                          const Spectral_options& opt, const Component_copies& copies,
+                                                          long long& operations)
 {
   const Eigen::Index n = mass.size();
+  operations = 0;
   // On a Laplacian of several components lambda = 0 once per component: those pairs are taken
   // exactly (the M-normalised indicators, as the whole pencil's solve takes them), in place of
   // each part's first ones (a class's first component: one; the rest: one per component).
@@ -1569,6 +1572,7 @@ inline std::optional<Spectral_pairs> eigenpairs_of_copies(const Eigen::SparseMat
       part.pairs = dense ? dense_smallest_eigenpairs(part.stiffness, part.mass, size)
                          : eigenpairs_of_pencil(part.stiffness, part.mass, part.asked, part_opt);
       out.operations += part.pairs.operations;
+      operations = out.operations;
       out.attempts = std::max(out.attempts, part.pairs.attempts);
       out.dense = out.dense && part.pairs.dense;
       const Eigen::VectorXd& v = part.pairs.values;
@@ -1669,9 +1673,23 @@ inline Spectral_pairs smallest_eigenpairs(const Eigen::SparseMatrix<double>& sti
                                 std::to_string(n) + "]");
   if(!(mass.array() > 0).all()) throw Numerical_error("spectral solver: the mass matrix must be positive");
   if(opt.solve_copies_once)
-    if(const std::optional<Component_copies> copies = find_component_copies(stiffness, mass))
-      if(std::optional<Spectral_pairs> pairs = eigenpairs_of_copies(stiffness, mass, k, opt, *copies))
+    if(const std::optional<Component_copies> copies = find_component_copies(stiffness, mass)) {
+      const auto start = std::chrono::steady_clock::now();
+      long long spent = 0;
+      if(std::optional<Spectral_pairs> pairs = eigenpairs_of_copies(stiffness, mass, k, opt, *copies, spent))
         return std::move(*pairs);
+      // Solved whole after all: its reports go on from the copies path's time and solves, and
+      // its count includes them.
+      Spectral_options whole = opt;
+      const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if(opt.progress)
+        whole.progress = [&](const Spectral_progress& p) {
+          opt.progress(Spectral_progress{p.stage, spent + p.operations, p.attempt, before + p.elapsed_seconds});
+        };
+      Spectral_pairs pairs = eigenpairs_of_pencil(stiffness, mass, k, whole);
+      pairs.operations += spent;
+      return pairs;
+    }
   return eigenpairs_of_pencil(stiffness, mass, k, opt);
 }
 
