@@ -13,10 +13,13 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <array>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <random>
+#include <set>
 #include <string>
 #include <tuple>
 
@@ -319,18 +322,23 @@ lapmesh::Triangle_soup shuffled(lapmesh::Triangle_soup soup, unsigned seed)
 template <typename Graph>
 void expect_uniform_paths_equal(const Graph& g, const std::string& what)
 {
-  Eigen::SparseMatrix<double> direct;
+  Eigen::SparseMatrix<double> direct, sorted_in_place;
   const bool taken = lapmesh::internal::with_default_vertex_rows(g, [&](auto rows) {
     return lapmesh::internal::uniform_stiffness_from_edges(g, rows, get(CGAL::vertex_point, g), direct);
   });
   ASSERT_TRUE(taken) << what << ": the edge path declined";
+  // The rows sorted where they lie, which the default takes on large meshes only.
+  ASSERT_TRUE(lapmesh::internal::with_default_vertex_rows(g, [&](auto rows) {
+    return lapmesh::internal::uniform_stiffness_from_edges(g, rows, get(CGAL::vertex_point, g), sorted_in_place, 0);
+  })) << what << ": the edge path declined";
   auto rows = get(CGAL::dynamic_vertex_property_t<int>(), g);
   int i = 0;
   for(auto v : vertices(g)) put(rows, v, i++);
   const auto fast = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform));
   const auto general = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform).vertex_index_map(rows));
   const Eigen::SparseMatrix<double>& edge_path = direct;
-  for(const Eigen::SparseMatrix<double>* W : {&edge_path, &fast.stiffness}) {
+  const Eigen::SparseMatrix<double>& in_place = sorted_in_place;
+  for(const Eigen::SparseMatrix<double>* W : {&edge_path, &in_place, &fast.stiffness}) {
     ASSERT_EQ(W->rows(), general.stiffness.rows()) << what;
     ASSERT_EQ(W->nonZeros(), general.stiffness.nonZeros()) << what;
     ASSERT_TRUE(W->isCompressed() && general.stiffness.isCompressed()) << what;
@@ -354,6 +362,15 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   cone.points.push_back({0, 0, 1});
   for(int k = 0; k < 300; ++k) cone.triangles.push_back({k, (k + 1) % 300, 300});
   expect_uniform_paths_equal(to_mesh(cone), "a cone of 300 faces");
+  for(int faces : {7, 8}) {  // an apex row of 8 and of 9 entries: the network's and the insertion sort's
+    lapmesh::Triangle_soup small_cone;
+    for(int k = 0; k < faces; ++k)
+      small_cone.points.push_back({std::cos(2 * M_PI * k / faces), std::sin(2 * M_PI * k / faces), 0});
+    small_cone.points.push_back({0, 0, 1});
+    for(int k = 0; k < faces; ++k) small_cone.triangles.push_back({k, (k + 1) % faces, faces});
+    expect_uniform_paths_equal(to_mesh(shuffled(small_cone, unsigned(faces))),
+                               "a shuffled cone of " + std::to_string(faces) + " faces");
+  }
   expect_uniform_paths_equal(to_mesh(shuffled(lapmesh::icosphere(3), 11)), "a shuffled icosphere");
 
   // Two components, a vertex in no face, and an edge in no face between two corners of the
@@ -802,6 +819,64 @@ TEST(Operators, RowSortIsStableOnShortAndLongRows)
       EXPECT_EQ(keys_alone[k], expected[k].first) << count << " entries, entry " << k;
     }
   }
+}
+
+// The network of eight: every row of zeros and ones (which suffices for a network of
+// compare-exchanges to sort every input), then rows of indices with repeats, padded, against
+// std::sort.
+TEST(Operators, ShortRowsAreSortedByTheNetwork)
+{
+  for(int bits = 0; bits < 256; ++bits) {
+    std::array<int, 8> keys;
+    for(int k = 0; k < 8; ++k) keys[std::size_t(k)] = (bits >> k) & 1;
+    const int ones = int(std::count(keys.begin(), keys.end(), 1));
+    lapmesh::internal::sort_short_row(keys.data());
+    for(int k = 0; k < 8; ++k) EXPECT_EQ(keys[std::size_t(k)], k >= 8 - ones ? 1 : 0) << "bits " << bits;
+  }
+  std::mt19937 random(5);
+  for(int trial = 0; trial < 2000; ++trial) {
+    std::array<int, 8> keys;
+    const int used = 1 + trial % 8;
+    for(int k = 0; k < 8; ++k)
+      keys[std::size_t(k)] = k < used ? int(random() % 12) * 100000 : std::numeric_limits<int>::max();
+    std::array<int, 8> expected = keys;
+    std::sort(expected.begin(), expected.end());
+    lapmesh::internal::sort_short_row(keys.data());
+    EXPECT_EQ(keys, expected) << "trial " << trial;
+  }
+}
+
+// A row of W from its neighbours in any order, on both sides of the network's eight entries:
+// sorted with the diagonal among them, values 1 and -degree; a neighbour given twice is
+// declined.
+TEST(Operators, UniformRowsAreSortedWithTheirDiagonal)
+{
+  std::mt19937 random(7);
+  for(int degree = 1; degree <= 20; ++degree)
+    for(int trial = 0; trial < 50; ++trial) {
+      const int r = int(random() % 1000);
+      std::vector<int> pool(1000);
+      std::iota(pool.begin(), pool.end(), 0);
+      pool.erase(pool.begin() + r);
+      std::shuffle(pool.begin(), pool.end(), random);
+      std::vector<int> row(pool.begin(), pool.begin() + degree);
+      row.push_back(-1);  // the diagonal's slot, not yet written
+      std::vector<int> expected(pool.begin(), pool.begin() + degree);
+      expected.push_back(r);
+      std::sort(expected.begin(), expected.end());
+      std::vector<double> value(std::size_t(degree) + 1, 0.0);
+      ASSERT_TRUE(lapmesh::internal::finish_uniform_row(row.data(), value.data(), degree, r)) << degree;
+      EXPECT_EQ(row, expected) << "degree " << degree;
+      for(int a = 0; a <= degree; ++a)
+        EXPECT_EQ(value[std::size_t(a)], row[std::size_t(a)] == r ? -double(degree) : 1.0) << "degree " << degree;
+
+      if(degree < 2) continue;
+      std::vector<int> twice(pool.begin(), pool.begin() + degree);
+      twice[std::size_t(random() % std::size_t(degree))] = twice[std::size_t(trial % degree == 0 ? 1 : 0)];
+      if(std::set<int>(twice.begin(), twice.end()).size() == std::size_t(degree)) continue;
+      twice.push_back(-1);
+      EXPECT_FALSE(lapmesh::internal::finish_uniform_row(twice.data(), value.data(), degree, r)) << "degree " << degree;
+    }
 }
 
 // Vertices in no face first, in the middle and last: the stiffness is the one of the mesh

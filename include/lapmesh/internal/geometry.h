@@ -118,7 +118,7 @@ public:
     if(!wanted) return;
     if constexpr(Scatter) {
       m_sums.resize(t.num_vertices, Width);
-      advise_huge_pages(m_sums);
+      prepare_for_writing(m_sums);
       m_sums.setZero();
       m_out = m_sums.data();
     } else {
@@ -154,7 +154,10 @@ public:
       return std::move(m_sums);
     } else {
       Sums out(t.num_vertices, Width);
-      advise_huge_pages(out);
+      if(parallel)
+        advise_huge_pages(out);
+      else
+        prepare_for_writing(out);
       for_each_index(t.num_vertices, parallel, [&](Index v) {
         double s[Width] = {};
         for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
@@ -425,7 +428,10 @@ void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
   const Index n = t.num_vertices, nnz = t.num_nonzeros();
   S.resize(n, n);
   S.resizeNonZeros(nnz);
-  advise_huge_pages(S);
+  if(parallel)
+    advise_huge_pages(S);
+  else
+    prepare_for_writing(S);
   Index* outer = S.outerIndexPtr();
   Index* inner = S.innerIndexPtr();
   outer[0] = 0;

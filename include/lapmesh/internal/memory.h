@@ -20,6 +20,12 @@
 // machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the environment turns both off
 // (read once per process).
 //
+// Why populating: where no huge page is to be had (transparent huge pages off, or physical
+// memory too fragmented for 2 MiB pages), an Eigen result of at least 32 MiB that is written whole
+// right after it is sized has its pages made present by one madvise(MADV_POPULATE_WRITE) call
+// (Linux 5.14 on; an older kernel refuses it and nothing changes): the kernel still zeroes every
+// page, but without a trip through the fault handler for each one (prepare_for_writing()).
+//
 // Why prefetches: the passes over corners read the triangles and positions at the indices of
 // the neighbours, which on a large mesh miss the caches; the addresses are known a few
 // vertices or faces ahead, so the loads can be started early.
@@ -42,6 +48,7 @@
 
 #if defined(__linux__)
 #include <sys/mman.h>
+#include <unistd.h>
 #endif
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -218,6 +225,48 @@ void advise_huge_pages(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>&
   const std::size_t nnz = std::size_t(matrix.data().size());
   advise_huge_pages(matrix.valuePtr(), sizeof(Scalar) * nnz);
   advise_huge_pages(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);
+}
+
+/// Makes the pages of [p, p + bytes), a fresh block of at least 32 MiB about to be written whole,
+/// present at once (see above). Not for a block that may stay partly unwritten: its pages would
+/// count in the process's memory all the same.
+inline void populate_for_writing(const void* p, std::size_t bytes) noexcept
+{
+#if defined(__linux__)
+#ifdef MADV_POPULATE_WRITE
+  constexpr int populate_write = MADV_POPULATE_WRITE;
+#else
+  constexpr int populate_write = 23;  // the value of Linux's uapi, which older C libraries do not name
+#endif
+  if(bytes < huge_page_advice_min_bytes) return;
+  static const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096);
+  const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p), first = begin - begin % page;
+  madvise(reinterpret_cast<void*>(first), begin + bytes - first, populate_write);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
+/// A dense Eigen array, sized and about to be written whole by one thread: advise_huge_pages(),
+/// then populate_for_writing(). (Written by several threads, its pages are better faulted in by
+/// each thread where it writes.)
+template <typename Derived>
+void prepare_for_writing(const Eigen::PlainObjectBase<Derived>& array) noexcept
+{
+  advise_huge_pages(array);
+  populate_for_writing(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()));
+}
+
+/// The values and inner indices of a sparse matrix sized by resizeNonZeros(), about to be written
+/// whole by one thread: advise_huge_pages(), then populate_for_writing().
+template <typename Scalar, int Options, typename StorageIndex>
+void prepare_for_writing(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix) noexcept
+{
+  advise_huge_pages(matrix);
+  const std::size_t nnz = std::size_t(matrix.data().size());
+  populate_for_writing(matrix.valuePtr(), sizeof(Scalar) * nnz);
+  populate_for_writing(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);
 }
 
 /// Frees the storage of a sparse matrix, which becomes empty. Assigning an empty matrix would

@@ -4,6 +4,10 @@
 // quadratic in the row's length, though, and a vertex of very many faces (the apex of a fan,
 // a pole, a polygon triangulated from one corner) would make it the slowest step of all.
 // Longer rows go to std::stable_sort. Both are stable: equal keys keep their order.
+// Rows of up to eight indices, most rows of most meshes, also have a sorting network
+// (sort_short_row()), whose compare-exchanges do not branch on the values: insertion sort
+// mispredicts a branch at nearly every step where a vertex's neighbours come in no particular
+// order (a mesh numbered along a space-filling curve, or shuffled).
 #ifndef LAPMESH_INTERNAL_ROW_SORT_H
 #define LAPMESH_INTERNAL_ROW_SORT_H
 
@@ -60,6 +64,28 @@ void sort_row(Key* keys, std::size_t count, Value* values = nullptr)
   } else {
     std::stable_sort(keys, keys + count);
   }
+}
+
+/// Sorts keys[0 .. 8) in ascending order by a sorting network of 19 compare-exchanges (Batcher's
+/// odd-even merge sort of 8), with no branch on the values. The keys are at least 0; pad a
+/// shorter row with a key above every other. Not stable, which equal integers do not need.
+template <typename Integer>
+void sort_short_row(Integer* keys)
+{
+  static_assert(std::is_integral<Integer>::value && std::is_signed<Integer>::value, "signed integer keys");
+  // y - x where y < x, else 0: x and y are at least 0, so y - x does not overflow.
+  const auto exchange = [keys](int i, int j) {
+    const Integer x = keys[i], y = keys[j];
+    const Integer d = static_cast<Integer>((y - x) & ((y - x) >> (8 * sizeof(Integer) - 1)));
+    keys[i] = static_cast<Integer>(x + d);
+    keys[j] = static_cast<Integer>(y - d);
+  };
+  exchange(0, 2), exchange(1, 3), exchange(4, 6), exchange(5, 7);
+  exchange(0, 4), exchange(1, 5), exchange(2, 6), exchange(3, 7);
+  exchange(0, 1), exchange(2, 3), exchange(4, 5), exchange(6, 7);
+  exchange(2, 4), exchange(3, 5);
+  exchange(1, 4), exchange(3, 6);
+  exchange(1, 2), exchange(3, 4), exchange(5, 6);
 }
 
 } // namespace internal

@@ -11,6 +11,7 @@
 #include <lapmesh/errors.h>
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/mesh_extraction.h>
+#include <lapmesh/internal/row_sort.h>
 #include <lapmesh/internal/topology.h>
 #include <lapmesh/types.h>
 
@@ -28,19 +29,56 @@
 namespace lapmesh {
 namespace internal {
 
+/// From how many entries of W on uniform_stiffness_from_edges() sorts each row where it lies. The
+/// counting sort by the other end makes a second pass of scattered writes over the whole
+/// pattern: cheap while the pattern stays in the caches, a miss at nearly every write on a mesh
+/// of a million vertices, where sorting each row (most by a sorting network) is the quicker
+/// (doc/benchmarks-history.md).
+constexpr std::size_t uniform_rows_sorted_in_place_from = std::size_t(1) << 20;
+
+/// Row r of W from its `degree` neighbours at row[0 .. degree), in any order, and a slot after
+/// them: sorts them with r among them and writes the values beside them (1, and -degree on the
+/// diagonal). False where a neighbour comes twice (two edges between the same vertices).
+inline bool finish_uniform_row(Index* row, double* value, Index degree, Index r)
+{
+  constexpr Index short_row = 8, above_all = std::numeric_limits<Index>::max();
+  if(degree < short_row) {
+    Index keys[short_row];
+    for(Index a = 0; a < short_row; ++a) keys[a] = a < degree ? row[a] : a == degree ? r : above_all;
+    sort_short_row(keys);
+    bool repeated = false;
+    for(Index a = 1; a < short_row; ++a) repeated |= (a <= degree) & (keys[a - 1] == keys[a]);
+    if(repeated) return false;
+    for(Index a = 0; a <= degree; ++a) {
+      row[a] = keys[a];
+      value[a] = keys[a] == r ? -double(degree) : 1.0;
+    }
+    return true;
+  }
+  row[degree] = r;
+  sort_row(row, std::size_t(degree) + 1);
+  for(Index a = 0; a <= degree; ++a) {
+    if(a > 0 && row[a - 1] == row[a]) return false;
+    value[a] = row[a] == r ? -double(degree) : 1.0;
+  }
+  return true;
+}
+
 /// Writes W for `tm` into `W` (rows numbered by `row_of`, which must give the vertices of
 /// `vertices(tm)` the rows 0, 1, ... in that order) and returns true; returns false, with `W`
 /// unspecified, where the general path must decide. Throws Mesh_error as extract_mesh does: a
 /// non-finite coordinate, a face that is not a triangle, no face, a face with a repeated vertex.
 /// A vertex in no face gets an empty row and column.
 ///
-/// The rows are a counting sort of the edges by their ends, then by the other end: the graph's
-/// own arrays are read in storage order. (Circulating around each vertex instead jumps through
+/// The rows are a counting sort of the edges by their ends, then by the other end, or, from
+/// `sorted_in_place_from` entries of W on, each row sorted where it lies: the graph's own arrays
+/// are read in storage order. (Circulating around each vertex instead jumps through
 /// the halfedges, which on a mesh of poor locality made this slower than the general path once
 /// the caches were cold.)
 template <typename TriangleMesh, typename RowMap, typename VertexPointMap>
 bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexPointMap vpm,
-                                  Eigen::SparseMatrix<double>& W)
+                                  Eigen::SparseMatrix<double>& W,
+                                  std::size_t sorted_in_place_from = uniform_rows_sorted_in_place_from)
 {
   using GT = boost::graph_traits<TriangleMesh>;
   Index n = 0;
@@ -94,21 +132,30 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
   }
   W.resizeNonZeros(outer[n]);
-  advise_huge_pages(W);
+  prepare_for_writing(W);
   Index* inner = W.innerIndexPtr();
   double* value = W.valuePtr();
-  // Each row's neighbours in the order of the edges (its last slot, the diagonal's, unused),
-  // then every row again in ascending order: row c hands c to its neighbours' rows at step c, a
-  // counting sort by the other end. Sorting each row instead mispredicts a branch at nearly
-  // every step where a vertex's neighbours come in no particular order (a mesh numbered along a
-  // space-filling curve, or shuffled).
+  // Each row's neighbours in the order of the edges, its last slot (the diagonal's) unused.
+  std::vector<Index> fill(outer, outer + n);
+  const auto scatter = [&](Index* rows) {
+    for(std::size_t k = 0; k < ends.size(); k += 2) {
+      rows[fill[std::size_t(ends[k])]++] = ends[k + 1];
+      rows[fill[std::size_t(ends[k + 1])]++] = ends[k];
+    }
+  };
+  if(std::size_t(outer[n]) >= sorted_in_place_from) {
+    // Each row sorted where it lies (finish_uniform_row()).
+    scatter(inner);
+    for(Index r = 0; r < n; ++r)
+      if(outer[r + 1] > outer[r] && !finish_uniform_row(inner + outer[r], value + outer[r], outer[r + 1] - outer[r] - 1, r))
+        return false;
+    return true;
+  }
+  // Then every row again in ascending order: row c hands c to its neighbours' rows at step c, a
+  // counting sort by the other end.
   Working_array<Index> by_edge;
   by_edge.resize(std::size_t(outer[n]));
-  std::vector<Index> fill(outer, outer + n);
-  for(std::size_t k = 0; k < ends.size(); k += 2) {
-    by_edge[std::size_t(fill[std::size_t(ends[k])]++)] = ends[k + 1];
-    by_edge[std::size_t(fill[std::size_t(ends[k + 1])]++)] = ends[k];
-  }
+  scatter(by_edge.data());
   std::copy(outer, outer + n, fill.begin());
   for(Index c = 0; c < n; ++c) {
     const Index begin = outer[c], end = outer[c + 1];
