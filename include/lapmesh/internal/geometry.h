@@ -154,10 +154,7 @@ public:
       return std::move(m_sums);
     } else {
       Sums out(t.num_vertices, Width);
-      if(parallel)
-        advise_huge_pages(out);
-      else
-        prepare_for_writing(out);
+      prepare_for_writing(out, parallel);
       for_each_index(t.num_vertices, parallel, [&](Index v) {
         double s[Width] = {};
         for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
@@ -428,10 +425,7 @@ void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
   const Index n = t.num_vertices, nnz = t.num_nonzeros();
   S.resize(n, n);
   S.resizeNonZeros(nnz);
-  if(parallel)
-    advise_huge_pages(S);
-  else
-    prepare_for_writing(S);
+  prepare_for_writing(S, parallel);
   Index* outer = S.outerIndexPtr();
   Index* inner = S.innerIndexPtr();
   outer[0] = 0;

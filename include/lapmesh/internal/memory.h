@@ -248,22 +248,23 @@ inline void populate_for_writing(const void* p, std::size_t bytes) noexcept
 #endif
 }
 
-/// A dense Eigen array, sized and about to be written whole by one thread: advise_huge_pages(),
-/// then populate_for_writing(). (Written by several threads, its pages are better faulted in by
-/// each thread where it writes.)
+/// A dense Eigen array, sized and about to be written whole: advise_huge_pages(), then, unless
+/// several threads write it (`parallel`: its pages are better faulted in by each thread where it
+/// writes), populate_for_writing().
 template <typename Derived>
-void prepare_for_writing(const Eigen::PlainObjectBase<Derived>& array) noexcept
+void prepare_for_writing(const Eigen::PlainObjectBase<Derived>& array, bool parallel = false) noexcept
 {
   advise_huge_pages(array);
-  populate_for_writing(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()));
+  if(!parallel) populate_for_writing(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()));
 }
 
 /// The values and inner indices of a sparse matrix sized by resizeNonZeros(), about to be written
-/// whole by one thread: advise_huge_pages(), then populate_for_writing().
+/// whole: as for a dense array.
 template <typename Scalar, int Options, typename StorageIndex>
-void prepare_for_writing(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix) noexcept
+void prepare_for_writing(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix, bool parallel = false) noexcept
 {
   advise_huge_pages(matrix);
+  if(parallel) return;
   const std::size_t nnz = std::size_t(matrix.data().size());
   populate_for_writing(matrix.valuePtr(), sizeof(Scalar) * nnz);
   populate_for_writing(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);

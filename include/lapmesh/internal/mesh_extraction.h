@@ -248,10 +248,7 @@ Extracted_arrays<SurfaceMesh> read_surface_mesh(const SurfaceMesh& tm, VertexPoi
   const Index n = static_cast<Index>(tm.number_of_vertices()), m = static_cast<Index>(tm.number_of_faces());
   Extracted_arrays<SurfaceMesh> out;
   out.positions.resize(n, 3);
-  if(parallel)
-    advise_huge_pages(out.positions);
-  else
-    prepare_for_writing(out.positions);
+  prepare_for_writing(out.positions, parallel);
   out.vertices.resize(std::size_t(n));
   out.vertex_rows.resize(std::size_t(n));
   First_index<Index> non_finite;

@@ -36,6 +36,17 @@ namespace internal {
 /// (doc/benchmarks-history.md).
 constexpr std::size_t uniform_rows_sorted_in_place_from = std::size_t(1) << 20;
 
+/// The values of row r of W, ascending at row[0 .. degree] with r among them: 1, and -degree on
+/// the diagonal. False where a neighbour comes twice (two edges between the same vertices).
+inline bool write_uniform_values(const Index* row, double* value, Index degree, Index r)
+{
+  for(Index a = 0; a <= degree; ++a) {
+    if(a > 0 && row[a - 1] == row[a]) return false;
+    value[a] = row[a] == r ? -double(degree) : 1.0;
+  }
+  return true;
+}
+
 /// Row r of W from its `degree` neighbours at row[0 .. degree), in any order, and a slot after
 /// them: sorts them with r among them and writes the values beside them (1, and -degree on the
 /// diagonal). False where a neighbour comes twice (two edges between the same vertices).
@@ -57,11 +68,7 @@ inline bool finish_uniform_row(Index* row, double* value, Index degree, Index r)
   }
   row[degree] = r;
   sort_row(row, std::size_t(degree) + 1);
-  for(Index a = 0; a <= degree; ++a) {
-    if(a > 0 && row[a - 1] == row[a]) return false;
-    value[a] = row[a] == r ? -double(degree) : 1.0;
-  }
-  return true;
+  return write_uniform_values(row, value, degree, r);
 }
 
 /// Writes W for `tm` into `W` (rows numbered by `row_of`, which must give the vertices of
@@ -163,13 +170,9 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     inner[fill[std::size_t(c)]++] = c;
     for(Index a = begin; a + 1 < end; ++a) inner[fill[std::size_t(by_edge[std::size_t(a)])]++] = c;
   }
-  for(Index r = 0; r < n; ++r) {
-    const Index begin = outer[r], end = outer[r + 1];
-    for(Index a = begin; a < end; ++a) {
-      if(a > begin && inner[a - 1] == inner[a]) return false;  // two edges between the same vertices
-      value[a] = inner[a] == r ? -double(end - begin - 1) : 1.0;
-    }
-  }
+  for(Index r = 0; r < n; ++r)
+    if(outer[r + 1] > outer[r] && !write_uniform_values(inner + outer[r], value + outer[r], outer[r + 1] - outer[r] - 1, r))
+      return false;
   return true;
 }
 
