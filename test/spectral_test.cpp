@@ -402,6 +402,9 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
   Mesh elephant;
   lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
   using Supernodes = lapmesh::internal::Cholmod_supernodal_llt::Supernodes;
+  // The kernels take a supernode's columns below its triangle in groups of eight, then one group
+  // of the rest: the factors hold every size of that last group, alone and after full groups.
+  std::vector<bool> narrow(8, false), after_groups(8, false);
   for(const Mesh& m : {to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
     const auto pencil = lapmesh::laplacian_pencil(m);
     Eigen::SparseMatrix<double> K = -pencil.stiffness;
@@ -422,6 +425,11 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
       } else {
         EXPECT_LT(llt.factor()->xsize, merged_values);
         EXPECT_GT(llt.factor()->nsuper, merged_supernodes);
+      }
+      const lapmesh::internal::Supernodal_factor_view structure = llt.factor_view();
+      for(std::size_t s = 0; s < structure.nsuper; ++s) {
+        const int columns = structure.super[s + 1] - structure.super[s];
+        (columns < 8 ? narrow : after_groups)[std::size_t(columns % 8)] = true;
       }
       for(int width : {1, 2, 3, 4, 5, 6, 7, 8, 11}) {
         const Eigen::MatrixXd X = Eigen::MatrixXd::Random(K.rows(), width);
@@ -455,6 +463,12 @@ TEST(Spectral, SupernodalSolveKernelsEqualTheSimplicialSolve)
         }
 #endif
     }
+  }
+  for(int rest = 0; rest < 8; ++rest) {
+    if(rest > 0) {
+      EXPECT_TRUE(narrow[std::size_t(rest)]) << "no supernode of " << rest << " columns";
+    }
+    EXPECT_TRUE(after_groups[std::size_t(rest)]) << "no supernode of 8 j + " << rest << " columns, j > 0";
   }
 }
 #endif

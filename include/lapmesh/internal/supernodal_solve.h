@@ -7,8 +7,8 @@
 // calls the BLAS (dtrsm, dgemm) on each supernode, where the call and packing overhead of such
 // small products outweighs the arithmetic. Here each column of L is read once, contiguously, and
 // applied to the few values of the rows it touches; the rows are stored side by side so that one
-// cache line holds all the right-hand sides of a row. Four columns of a supernode go together
-// below its diagonal block, so that a row of X is loaded and stored once for four columns.
+// cache line holds all the right-hand sides of a row. Up to eight columns of a supernode go
+// together below its diagonal block, so that a row of X is loaded and stored once for all of them.
 // On x86-64 the kernels are compiled for the baseline, for AVX2 + FMA and (blocks of 8) for AVX-512,
 // chosen at run time (the generic build otherwise uses two-wide vectors only).
 #ifndef LAPMESH_INTERNAL_SUPERNODAL_SOLVE_H
@@ -91,6 +91,86 @@ struct Row_type<8>
 };
 #endif
 
+// The rows below a supernode's triangle for C of its columns (c0 the first, ld apart): forward,
+// each row of X is loaded and stored once for the C columns; backward, loaded once for C sums,
+// which land in the C rows at xj. Most supernodes of a surface mesh's factor have 5 to 8 columns:
+// taking them in one pass rather than in passes of four and one halves the random accesses to X.
+template <int C, typename R, std::size_t Stride>
+LAPMESH_KERNEL_INLINE void forward_below(const double* c0, std::size_t ld, int ncol, int nrow, const int* rows,
+                                         double* X, const double* xj)
+{
+  R v[C];
+  for(int c = 0; c < C; ++c) v[c] = load<R>(xj + std::size_t(c) * Stride);
+  for(int i = ncol; i < nrow; ++i) {
+    double* xi = X + std::size_t(rows[i]) * Stride;
+    if constexpr(C == 1) {
+      store<R>(xi, load<R>(xi) - c0[i] * v[0]);
+    } else {  // two partial sums: the additions of one sum form a dependency chain
+      R even = c0[i] * v[0], odd = c0[ld + i] * v[1];
+      for(int c = 2; c < C; c += 2) {
+        even = even + c0[std::size_t(c) * ld + i] * v[c];
+        if(c + 1 < C) odd = odd + c0[std::size_t(c + 1) * ld + i] * v[c + 1];
+      }
+      store<R>(xi, load<R>(xi) - (even + odd));
+    }
+  }
+}
+
+template <int C, typename R, std::size_t Stride>
+LAPMESH_KERNEL_INLINE void backward_below(const double* c0, std::size_t ld, int ncol, int nrow, const int* rows,
+                                          const double* X, double* xj)
+{
+  if constexpr(C == 1) {  // two partial sums, as above
+    R a0 = zero<R>(), a1 = a0;
+    int i = ncol;
+    for(; i + 1 < nrow; i += 2) {
+      a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * Stride);
+      a1 = a1 + c0[i + 1] * load<R>(X + std::size_t(rows[i + 1]) * Stride);
+    }
+    if(i < nrow) a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * Stride);
+    store<R>(xj, load<R>(xj) - (a0 + a1));
+  } else {
+    R a[C];
+    for(int c = 0; c < C; ++c) a[c] = zero<R>();
+    for(int i = ncol; i < nrow; ++i) {
+      const R xi = load<R>(X + std::size_t(rows[i]) * Stride);
+      for(int c = 0; c < C; ++c) a[c] = a[c] + c0[std::size_t(c) * ld + i] * xi;
+    }
+    for(int c = 0; c < C; ++c) store<R>(xj + std::size_t(c) * Stride, load<R>(xj + std::size_t(c) * Stride) - a[c]);
+  }
+}
+
+template <bool Forward, int C, typename R, std::size_t Stride>
+LAPMESH_KERNEL_INLINE void below_group(const double* Ls, int nrow, int ncol, int j, const int* rows, double* X,
+                                       double* Xs)
+{
+  const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
+  double* xj = Xs + std::size_t(j) * Stride;
+  if constexpr(Forward)
+    forward_below<C, R, Stride>(c0, std::size_t(nrow), ncol, nrow, rows, X, xj);
+  else
+    backward_below<C, R, Stride>(c0, std::size_t(nrow), ncol, nrow, rows, X, xj);
+}
+
+// Every column of a supernode below its triangle: groups of eight (the registers hold a group's
+// values and the sums), then the rest in one group.
+template <bool Forward, typename R, std::size_t Stride>
+LAPMESH_KERNEL_INLINE void below_triangle(const double* Ls, int nrow, int ncol, const int* rows, double* X, double* Xs)
+{
+  int j = 0;
+  for(; j + 8 <= ncol; j += 8) below_group<Forward, 8, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs);
+  switch(ncol - j) {
+    case 1: below_group<Forward, 1, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 2: below_group<Forward, 2, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 3: below_group<Forward, 3, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 4: below_group<Forward, 4, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 5: below_group<Forward, 5, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 6: below_group<Forward, 6, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    case 7: below_group<Forward, 7, R, Stride>(Ls, nrow, ncol, j, rows, X, Xs); break;
+    default: break;
+  }
+}
+
 // W of the right-hand sides of X, which holds Stride of them row by row (the W start at X).
 template <int W, int Stride>
 LAPMESH_KERNEL_INLINE void forward(const Supernodal_factor_view& L, double* X)
@@ -112,26 +192,7 @@ LAPMESH_KERNEL_INLINE void forward(const Supernodal_factor_view& L, double* X)
         store<R>(xi, load<R>(xi) - col[i] * vj);
       }
     }
-    int j = 0;
-    for(; j + 4 <= ncol; j += 4) {  // the rows below it, four columns at a time
-      const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
-      const double* xj = Xs + std::size_t(j) * stride;
-      const R v0 = load<R>(xj), v1 = load<R>(xj + stride), v2 = load<R>(xj + 2 * stride),
-              v3 = load<R>(xj + 3 * stride);
-      for(int i = ncol; i < nrow; ++i) {
-        double* xi = X + std::size_t(rows[i]) * stride;
-        store<R>(xi, load<R>(xi) - ((c0[i] * v0 + c1[i] * v1) + (c2[i] * v2 + c3[i] * v3)));
-      }
-    }
-    for(; j < ncol; ++j) {
-      const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      const R v0 = load<R>(Xs + std::size_t(j) * stride);
-      for(int i = ncol; i < nrow; ++i) {
-        double* xi = X + std::size_t(rows[i]) * stride;
-        store<R>(xi, load<R>(xi) - c0[i] * v0);
-      }
-    }
+    below_triangle<true, R, stride>(Ls, nrow, ncol, rows, X, Xs);
   }
 }
 
@@ -145,36 +206,7 @@ LAPMESH_KERNEL_INLINE void backward(const Supernodal_factor_view& L, double* X)
     const int* rows = L.rows + L.pi[s];
     const double* Ls = L.values + L.px[s];
     double* Xs = X + std::size_t(k1) * stride;
-    int j = 0;
-    for(; j + 4 <= ncol; j += 4) {  // the rows below the triangle, four columns at a time
-      const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      const double *c1 = c0 + nrow, *c2 = c1 + nrow, *c3 = c2 + nrow;
-      R a0 = zero<R>(), a1 = a0, a2 = a0, a3 = a0;
-      for(int i = ncol; i < nrow; ++i) {
-        const R xi = load<R>(X + std::size_t(rows[i]) * stride);
-        a0 = a0 + c0[i] * xi;
-        a1 = a1 + c1[i] * xi;
-        a2 = a2 + c2[i] * xi;
-        a3 = a3 + c3[i] * xi;
-      }
-      double* v0 = Xs + std::size_t(j) * stride;
-      store<R>(v0, load<R>(v0) - a0);
-      store<R>(v0 + stride, load<R>(v0 + stride) - a1);
-      store<R>(v0 + 2 * stride, load<R>(v0 + 2 * stride) - a2);
-      store<R>(v0 + 3 * stride, load<R>(v0 + 3 * stride) - a3);
-    }
-    for(; j < ncol; ++j) {  // two partial sums: the additions of one sum form a dependency chain
-      const double* c0 = Ls + std::size_t(j) * std::size_t(nrow);
-      R a0 = zero<R>(), a1 = a0;
-      int i = ncol;
-      for(; i + 1 < nrow; i += 2) {
-        a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * stride);
-        a1 = a1 + c0[i + 1] * load<R>(X + std::size_t(rows[i + 1]) * stride);
-      }
-      if(i < nrow) a0 = a0 + c0[i] * load<R>(X + std::size_t(rows[i]) * stride);
-      double* v0 = Xs + std::size_t(j) * stride;
-      store<R>(v0, load<R>(v0) - (a0 + a1));
-    }
+    below_triangle<false, R, stride>(Ls, nrow, ncol, rows, X, Xs);
     for(int jj = ncol; jj-- > 0;) {  // the dense triangle, backwards
       const double* col = Ls + std::size_t(jj) * std::size_t(nrow);
       double* xj = Xs + std::size_t(jj) * stride;
