@@ -93,8 +93,8 @@ struct Row_type<8>
 
 // The rows below a supernode's triangle for C of its columns (c0 the first, ld apart): forward,
 // each row of X is loaded and stored once for the C columns; backward, loaded once for C sums,
-// which land in the C rows at xj. Most supernodes of a surface mesh's factor have 5 to 8 columns:
-// taking them in one pass rather than in passes of four and one halves the random accesses to X.
+// which land in the C rows at xj. Most of a surface mesh's factor lies in supernodes of five or
+// more columns, which passes of four and one took with two or more accesses to each row of X.
 template <int C, typename R, std::size_t Stride>
 LAPMESH_KERNEL_INLINE void forward_below(const double* c0, std::size_t ld, int ncol, int nrow, const int* rows,
                                          double* X, const double* xj)
