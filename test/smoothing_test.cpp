@@ -26,6 +26,7 @@
 #endif
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -537,6 +538,84 @@ TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
   }
 }
 
+namespace {
+/// The graph Laplacian of a path (1 dimension) or of a cubic grid (3), negative semidefinite.
+Eigen::SparseMatrix<double> grid_laplacian(int side, int dimensions)
+{
+  const int n = dimensions == 3 ? side * side * side : side;
+  std::vector<Eigen::Triplet<double>> entries;
+  const auto link = [&](int a, int b) {
+    entries.emplace_back(a, b, 1.0);
+    entries.emplace_back(b, a, 1.0);
+    entries.emplace_back(a, a, -1.0);
+    entries.emplace_back(b, b, -1.0);
+  };
+  for(int i = 0; i < n; ++i) {
+    if(dimensions == 1) {
+      if(i + 1 < n) link(i, i + 1);
+      continue;
+    }
+    const int x = i % side, y = (i / side) % side, z = i / (side * side);
+    if(x + 1 < side) link(i, i + 1);
+    if(y + 1 < side) link(i, i + side);
+    if(z + 1 < side) link(i, i + side * side);
+  }
+  Eigen::SparseMatrix<double> S(n, n);
+  S.setFromTriplets(entries.begin(), entries.end());
+  return S;
+}
+
+struct Ordering_outcome
+{
+  std::string ordering;
+  double factor_entries = 0;
+  std::size_t factor_values = 0, default_factor_values = 0;  // the latter: merged supernodes
+  double flops_per_entry = 0;
+  bool factorised_by_lapmesh = false;
+  double error = std::numeric_limits<double>::infinity();  // until a solve is compared
+};
+
+/// The smoothing solver's analysis of M - S (M the identity) for `planned_factorizations`, its
+/// factorisation and a solve compared with Eigen's LDL^T; large_factor_entries < 0: the default.
+Ordering_outcome solve_in_chosen_order(const Eigen::SparseMatrix<double>& S, double large_factor_entries,
+                                       int planned_factorizations)
+{
+  using lapmesh::internal::Constrained_spd_system;
+  using lapmesh::internal::Index;
+  using lapmesh::internal::Spd_direct_solver;
+  const Index n = Index(S.rows());
+  const std::vector<char> free_mask(std::size_t(n), 1);
+  const Eigen::VectorXd mass = Eigen::VectorXd::Ones(n);
+  Spd_direct_solver solver(true);
+  if(large_factor_entries >= 0) solver.set_large_factor_entries(large_factor_entries);
+  Constrained_spd_system natural(S, free_mask);
+  const std::vector<Index> order = solver.analyze(natural.matrix(), planned_factorizations);
+  Constrained_spd_system ordered(S, free_mask, order);
+  solver.analyze_in_order(ordered.matrix());
+  ordered.fill_matrix(S, -1.0, mass, 1.0);
+  Ordering_outcome outcome;
+  outcome.ordering = solver.ordering();
+  outcome.factor_entries = solver.factor_entries();
+  outcome.factor_values = solver.factor_values();
+  lapmesh::internal::Cholmod_supernodal_llt merged(lapmesh::internal::Cholmod_supernodal_llt::Ordering::given);
+  merged.analyzePattern(ordered.matrix());
+  outcome.default_factor_values = merged.factor()->xsize;
+  outcome.flops_per_entry = merged.cholmod().fl / merged.cholmod().lnz;
+  if(!solver.factorize(ordered.matrix())) return outcome;
+  outcome.factorised_by_lapmesh = solver.factorised_by_lapmesh();
+  const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, 3);
+  Eigen::MatrixXd B(n, 3), solution = X;
+  ordered.gather(X, B);
+  EXPECT_TRUE(solver.solve_in_place(B));
+  ordered.scatter(B, solution);
+  natural.fill_matrix(S, -1.0, mass, 1.0);
+  const Eigen::SparseMatrix<double> full = natural.matrix().selfadjointView<Eigen::Lower>();
+  const Eigen::MatrixXd expected = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(X);
+  outcome.error = (solution - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
+  return outcome;
+}
+} // namespace
+
 TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsPerEntry)
 {
   // The graph Laplacian of a 3D grid: AMD's factor needs many flops per entry there, and
@@ -544,75 +623,9 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   // be. Whatever the ordering, the solve equals Eigen's LDL^T solution of the same system. The
   // supernodes: merged (CHOLMOD's default) where CHOLMOD factorises, compact where lapmesh does,
   // so that the path's factor holds fewer values than CHOLMOD's default analysis would give it.
-  using lapmesh::internal::Constrained_spd_system;
-  using lapmesh::internal::Index;
-  using lapmesh::internal::Spd_direct_solver;
-  const auto laplacian = [](int side, int dimensions) {
-    const int n = dimensions == 3 ? side * side * side : side;
-    std::vector<Eigen::Triplet<double>> entries;
-    const auto link = [&](int a, int b) {
-      entries.emplace_back(a, b, 1.0);
-      entries.emplace_back(b, a, 1.0);
-      entries.emplace_back(a, a, -1.0);
-      entries.emplace_back(b, b, -1.0);
-    };
-    for(int i = 0; i < n; ++i) {
-      if(dimensions == 1) {
-        if(i + 1 < n) link(i, i + 1);
-        continue;
-      }
-      const int x = i % side, y = (i / side) % side, z = i / (side * side);
-      if(x + 1 < side) link(i, i + 1);
-      if(y + 1 < side) link(i, i + side);
-      if(z + 1 < side) link(i, i + side * side);
-    }
-    Eigen::SparseMatrix<double> S(n, n);
-    S.setFromTriplets(entries.begin(), entries.end());
-    return S;
-  };
-  struct Outcome
-  {
-    std::string ordering;
-    double factor_entries = 0;
-    std::size_t factor_values = 0, default_factor_values = 0;  // the latter: merged supernodes
-    double flops_per_entry = 0;
-    bool factorised_by_lapmesh = false;
-    double error = std::numeric_limits<double>::infinity();  // until a solve is compared
-  };
-  const auto solve = [](const Eigen::SparseMatrix<double>& S, double large_factor_entries) {
-    const Index n = Index(S.rows());
-    const std::vector<char> free_mask(std::size_t(n), 1);
-    const Eigen::VectorXd mass = Eigen::VectorXd::Ones(n);
-    Spd_direct_solver solver(true);
-    if(large_factor_entries >= 0) solver.set_large_factor_entries(large_factor_entries);
-    Constrained_spd_system natural(S, free_mask);
-    const std::vector<Index> order = solver.analyze(natural.matrix(), 1);
-    Constrained_spd_system ordered(S, free_mask, order);
-    solver.analyze_in_order(ordered.matrix());
-    ordered.fill_matrix(S, -1.0, mass, 1.0);
-    Outcome outcome;
-    outcome.ordering = solver.ordering();
-    outcome.factor_entries = solver.factor_entries();
-    outcome.factor_values = solver.factor_values();
-    lapmesh::internal::Cholmod_supernodal_llt merged(lapmesh::internal::Cholmod_supernodal_llt::Ordering::given);
-    merged.analyzePattern(ordered.matrix());
-    outcome.default_factor_values = merged.factor()->xsize;
-    outcome.flops_per_entry = merged.cholmod().fl / merged.cholmod().lnz;
-    if(!solver.factorize(ordered.matrix())) return outcome;
-    outcome.factorised_by_lapmesh = solver.factorised_by_lapmesh();
-    const Eigen::MatrixXd X = Eigen::MatrixXd::Random(n, 3);
-    Eigen::MatrixXd B(n, 3), solution = X;
-    ordered.gather(X, B);
-    EXPECT_TRUE(solver.solve_in_place(B));
-    ordered.scatter(B, solution);
-    natural.fill_matrix(S, -1.0, mass, 1.0);
-    const Eigen::SparseMatrix<double> full = natural.matrix().selfadjointView<Eigen::Lower>();
-    const Eigen::MatrixXd expected = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(full).solve(X);
-    outcome.error = (solution - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
-    return outcome;
-  };
-  const Eigen::SparseMatrix<double> grid = laplacian(26, 3), path = laplacian(20000, 1);
-  const Outcome by_default = solve(grid, -1), large = solve(grid, 0), path_large = solve(path, 0);
+  const Eigen::SparseMatrix<double> grid = grid_laplacian(26, 3), path = grid_laplacian(20000, 1);
+  const Ordering_outcome by_default = solve_in_chosen_order(grid, -1, 1), large = solve_in_chosen_order(grid, 0, 1),
+                         path_large = solve_in_chosen_order(path, 0, 1);
   EXPECT_EQ(by_default.ordering, "amd");  // its factor is far below the default bar
   EXPECT_EQ(large.ordering, "metis");
   EXPECT_LT(large.factor_entries, 0.85 * by_default.factor_entries);
@@ -623,7 +636,7 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
   EXPECT_FALSE(by_default.factorised_by_lapmesh);
   EXPECT_TRUE(path_large.factorised_by_lapmesh);
   EXPECT_LT(double(path_large.factor_values), 0.9 * double(path_large.default_factor_values));
-  for(const Outcome* o : {&by_default, &large, &path_large}) {
+  for(const Ordering_outcome* o : {&by_default, &large, &path_large}) {
     EXPECT_EQ(o->factorised_by_lapmesh, o->flops_per_entry <= 600) << o->ordering;
     if(o->factorised_by_lapmesh)
       EXPECT_LT(o->factor_values, o->default_factor_values) << o->ordering;
@@ -632,17 +645,44 @@ TEST(Smoothing, OneFactorisationTriesMetisOnlyForALargeFactorThatNeedsManyFlopsP
     EXPECT_LE(o->error, 1e-12) << o->ordering;
   }
 }
+
+TEST(Smoothing, PlannedFactorisationsTryMetisOnceTheirFlopsOutweighItsAnalysis)
+{
+  // The time rule: METIS is tried from the number of factorisations whose flops in AMD's
+  // ordering reach metis_min_planned_flops_per_entry per entry of the lower triangle, and kept
+  // on the 3D grid, where its factor is smaller and needs fewer flops; one factorisation fewer
+  // keeps AMD. A path's factorisations need few flops: AMD for a thousand of them.
+  using Llt = lapmesh::internal::Cholmod_supernodal_llt;
+  const Eigen::SparseMatrix<double> grid = grid_laplacian(26, 3), path = grid_laplacian(20000, 1);
+  const lapmesh::internal::Constrained_spd_system natural(grid, std::vector<char>(std::size_t(grid.rows()), 1));
+  Llt amd(Llt::Ordering::amd);
+  amd.analyzePattern(natural.matrix());
+  ASSERT_EQ(amd.info(), Eigen::Success);
+  double lower_entries = 0;
+  for(Eigen::Index j = 0; j < natural.matrix().outerSize(); ++j)
+    for(Eigen::SparseMatrix<double>::InnerIterator it(natural.matrix(), j); it; ++it) lower_entries += it.row() >= j ? 1 : 0;
+  const int planned = int(std::ceil(Llt::metis_min_planned_flops_per_entry * lower_entries / amd.cholmod().fl));
+  ASSERT_GT(planned, 1);
+  const Ordering_outcome fewer = solve_in_chosen_order(grid, -1, planned - 1),
+                         enough = solve_in_chosen_order(grid, -1, planned),
+                         path_many = solve_in_chosen_order(path, -1, 1000);
+  EXPECT_EQ(fewer.ordering, "amd");
+  EXPECT_EQ(enough.ordering, "metis");
+  EXPECT_LT(enough.factor_entries, 0.85 * fewer.factor_entries);
+  EXPECT_EQ(path_many.ordering, "amd");
+  for(const Ordering_outcome* o : {&fewer, &enough, &path_many}) EXPECT_LE(o->error, 1e-12) << o->ordering;
+}
 #endif
 
 TEST(Smoothing, CholmodAndEigenSolversAgreeWithConstraintsOverManySteps)
 {
-  // Enough steps for the automatic ordering (AMD or METIS), with fixed and boundary vertices:
-  // the block in the solver's order, the right-hand side with the fixed terms, the in-place
-  // solve and the stiffness released between steps give Eigen's LDL^T result.
+  // Several steps, with fixed and boundary vertices: the block in the solver's order, the
+  // right-hand side with the fixed terms, the in-place solve and the stiffness released between
+  // steps give Eigen's LDL^T result.
   const Mesh input = to_mesh(bumpy_patch(12));
   auto constrained = get(CGAL::dynamic_vertex_property_t<bool>(), input);
   for(auto v : vertices(input)) put(constrained, v, v.idx() % 11 == 4);
-  const int steps = lapmesh::internal::Spd_direct_solver::automatic_ordering_min_factorizations + 2;
+  const int steps = 8;
   Mesh a = input, b = input;
   const auto np = CGAL::parameters::number_of_iterations(steps).vertex_is_constrained_map(constrained);
   const auto ra = lapmesh::smooth_laplacian_implicit(a, 0.002, LP::use_cholmod(true, np));

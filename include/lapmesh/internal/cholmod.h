@@ -155,13 +155,14 @@ public:
   /// How the fill-reducing ordering is chosen.
   enum class Ordering {
     amd,        ///< AMD only: cheap, the best for a factorisation used once
-    automatic,  ///< CHOLMOD's default: AMD, and METIS too when AMD's flops per factor entry
-                ///< exceed 500 (regular grids such as a torus, where METIS's factor needs far
-                ///< fewer flops); the better of the two is kept. The METIS analysis costs much
-                ///< more than AMD's.
-    amd_or_metis,  ///< AMD, and METIS too when AMD's factor is large (large_factor_entries())
-                   ///< and meets metis_min_flops_per_entry: such a factor is most of a call's
-                   ///< memory, and METIS's is much smaller. The smaller of the two is kept.
+    amd_or_metis,  ///< AMD, and METIS too where it pays: for memory, when AMD's factor is large
+                   ///< (large_factor_entries()) and meets metis_min_flops_per_entry, as such a
+                   ///< factor is most of a call's memory and METIS's is much smaller (the smaller
+                   ///< of the two is kept); for time, when the planned factorisations
+                   ///< (set_planned_factorizations()) of AMD's ordering would take longer than
+                   ///< METIS's analysis (metis_min_planned_flops_per_entry) and their time goes
+                   ///< into flops (metis_min_flops_per_entry_for_time); the one of fewer flops is
+                   ///< kept. METIS's analysis costs several times AMD's.
     metis,      ///< METIS only (analyzePattern() fails where CHOLMOD was built without it)
     given       ///< none: the matrix is already in a fill-reducing, postordered order (the
                 ///< permutation() of an earlier analysis applied to it). CHOLMOD then factorises
@@ -229,14 +230,10 @@ public:
     m_ordering = ordering;
     // A postorder of the given order would be a permutation again, and the copies with it.
     cholmod().postorder = ordering != Ordering::given;
-    if(ordering == Ordering::automatic) {
-      cholmod().nmethods = 0;
-    } else {
-      cholmod().nmethods = 1;
-      cholmod().method[0].ordering = ordering == Ordering::metis ? CHOLMOD_METIS
-                                     : ordering == Ordering::given ? CHOLMOD_NATURAL
-                                                                   : CHOLMOD_AMD;
-    }
+    cholmod().nmethods = 1;
+    cholmod().method[0].ordering = ordering == Ordering::metis ? CHOLMOD_METIS
+                                   : ordering == Ordering::given ? CHOLMOD_NATURAL
+                                                                 : CHOLMOD_AMD;
   }
   /// Whether the factor is of the matrix as given (Ordering::given): no permutation to apply.
   bool in_given_order() const { return m_cholmodFactor && m_cholmodFactor->ordering == CHOLMOD_NATURAL; }
@@ -246,18 +243,33 @@ public:
   /// The factor entries from which Ordering::amd_or_metis tries METIS (256 MiB of values unless set).
   double large_factor_entries() const { return m_large_factor_entries; }
   void set_large_factor_entries(double entries) { m_large_factor_entries = entries; }
+  /// METIS's analysis takes about as long as the factorisations it spares where AMD's ordering
+  /// would need this many flops, summed over the planned factorisations, per entry of the
+  /// matrix's lower triangle: on surface meshes METIS's factor needed a third to two thirds of
+  /// AMD's flops, and its analysis costs several AMD analyses. The bar sits above the break-even
+  /// points measured on meshes of 47k to 384k vertices (doc/smoothing.md).
+  static constexpr double metis_min_planned_flops_per_entry = 6e4;
+  /// Below this many flops per factor entry a factorisation's time goes with its entries more
+  /// than with its flops, and METIS's fewer flops did not make it faster (doc/smoothing.md).
+  static constexpr double metis_min_flops_per_entry_for_time = 300;
+  /// The numeric factorisations that the next analysis will serve (Ordering::amd_or_metis).
+  void set_planned_factorizations(int factorizations) { m_planned_factorizations = std::max(factorizations, 1); }
 
   void analyzePattern(const MatrixType& A)
   {
     analyze_once(A);
     if(m_ordering != Ordering::amd_or_metis || info() != Eigen::Success) return;
     const cholmod_common& common = cholmod();
-    if(common.lnz < m_large_factor_entries || common.fl < metis_min_flops_per_entry * common.lnz) return;
-    const double amd_entries = common.lnz;
+    const bool for_memory = common.lnz >= m_large_factor_entries && common.fl >= metis_min_flops_per_entry * common.lnz;
+    const bool for_time = common.fl >= metis_min_flops_per_entry_for_time * common.lnz &&
+                          double(m_planned_factorizations) * common.fl >= metis_min_planned_flops_per_entry * lower_entries(A);
+    if(!for_memory && !for_time) return;
+    const double amd_entries = common.lnz, amd_flops = common.fl;
     cholmod().method[0].ordering = CHOLMOD_METIS;
     analyze_once(A);
     cholmod().method[0].ordering = CHOLMOD_AMD;
-    if(info() != Eigen::Success || !(common.lnz < amd_entries)) analyze_once(A);  // missing, or no better
+    const bool better = (for_memory && common.lnz < amd_entries) || (for_time && common.fl < amd_flops);
+    if(info() != Eigen::Success || !better) analyze_once(A);  // missing, or no better
   }
   void factorize(const MatrixType& A)
   {
@@ -381,6 +393,14 @@ private:
     m_info = Eigen::Success;
   }
 
+  static double lower_entries(const MatrixType& A)
+  {
+    double entries = 0;
+    for(Eigen::Index j = 0; j < A.outerSize(); ++j)
+      for(MatrixType::InnerIterator it(A, j); it; ++it) entries += it.row() >= j ? 1 : 0;
+    return entries;
+  }
+
   void analyze_once(const MatrixType& A)
   {
     {
@@ -396,6 +416,7 @@ private:
   Supernodes m_supernodes = Supernodes::merged, m_analysed_supernodes = Supernodes::merged;
   bool m_factorised_by_lapmesh = false;
   double m_large_factor_entries = double((std::size_t(256) << 20) / sizeof(double));
+  int m_planned_factorizations = 1;
 
   /// Y = D K^-1 D X with row i of the factor's system taken from (and written to) row
   /// row_of(i) of X, Y and scale.

@@ -153,12 +153,10 @@ private:
 
 /// Sparse Cholesky of an SPD matrix given by its lower triangle: Eigen's SimplicialLDLT (AMD),
 /// or, when compiled with LAPMESH_HAS_CHOLMOD (and linked with libcholmod), CHOLMOD's
-/// supernodal LL^T (internal/cholmod.h). Ordering: AMD, or CHOLMOD's choice between AMD and
-/// METIS when the analysis serves at least `automatic_ordering_min_factorizations`
-/// factorisations: METIS orders much more slowly than AMD and pays only through cheaper
-/// factorisations on regular grids; where it saves nothing CHOLMOD's rule keeps AMD. For fewer
-/// factorisations METIS is tried only when AMD's factor is large as well
-/// (Cholmod_supernodal_llt::Ordering::amd_or_metis).
+/// supernodal LL^T (internal/cholmod.h). Ordering: AMD, and METIS too where the planned
+/// factorisations of AMD's ordering would take longer than METIS's analysis, or where AMD's
+/// factor is large (Cholmod_supernodal_llt::Ordering::amd_or_metis): METIS orders much more
+/// slowly than AMD and pays only through cheaper factorisations or a smaller factor.
 class Spd_direct_solver
 {
 public:
@@ -187,9 +185,8 @@ public:
     return m_external.factor ? "sparse_linear_solver" : m_cholmod ? "cholmod-supernodal" : "eigen-ldlt";
   }
 
-  static constexpr int automatic_ordering_min_factorizations = 6;
-  /// With CHOLMOD and fewer factorisations: the factor entries from which METIS is tried beside
-  /// AMD (Cholmod_supernodal_llt::Ordering::amd_or_metis).
+  /// With CHOLMOD: the factor entries from which METIS is tried beside AMD for memory
+  /// (Cholmod_supernodal_llt::Ordering::amd_or_metis).
   void set_large_factor_entries(double entries)
   {
 #ifdef LAPMESH_HAS_CHOLMOD
@@ -232,14 +229,9 @@ public:
     if(m_external.factor) return {};  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
-      using Ordering = Cholmod_supernodal_llt::Ordering;
-      const bool automatic = planned_factorizations >= automatic_ordering_min_factorizations;
-      m_chol.set_ordering(automatic ? Ordering::automatic : Ordering::amd_or_metis);
+      m_chol.set_ordering(Cholmod_supernodal_llt::Ordering::amd_or_metis);
+      m_chol.set_planned_factorizations(planned_factorizations);
       m_chol.analyzePattern(A);
-      if(m_chol.info() != Eigen::Success && automatic) {  // METIS failed (or is missing): AMD alone
-        m_chol.set_ordering(Ordering::amd);
-        m_chol.analyzePattern(A);
-      }
       if(m_chol.info() != Eigen::Success) throw Numerical_error("the symbolic analysis (CHOLMOD) of the smoothing system failed");
       m_ordering = m_chol.factor()->ordering == CHOLMOD_METIS ? "metis" : "amd";
       const int* perm = m_chol.permutation();
