@@ -245,9 +245,9 @@ public:
   void set_large_factor_entries(double entries) { m_large_factor_entries = entries; }
   /// METIS's analysis takes about as long as the factorisations it spares where AMD's ordering
   /// would need this many flops, summed over the planned factorisations, per entry of the
-  /// matrix's lower triangle: on surface meshes METIS's factor needed a third to two thirds of
-  /// AMD's flops, and its analysis costs several AMD analyses. The bar sits above the break-even
-  /// points measured on meshes of 47k to 384k vertices (doc/smoothing.md).
+  /// matrix's lower triangle: on surface meshes METIS's factor needs far fewer flops than AMD's,
+  /// and its analysis costs several AMD analyses. The bar sits above the break-even points
+  /// measured on subdivided and CAD meshes (doc/smoothing.md).
   static constexpr double metis_min_planned_flops_per_entry = 6e4;
   /// Below this many flops per factor entry a factorisation's time goes with its entries more
   /// than with its flops, and METIS's fewer flops did not make it faster (doc/smoothing.md).
