@@ -249,9 +249,18 @@ public:
   /// and its analysis costs several AMD analyses. The bar sits above the break-even points
   /// measured on subdivided and CAD meshes (doc/smoothing.md).
   static constexpr double metis_min_planned_flops_per_entry = 6e4;
-  /// Below this many flops per factor entry a factorisation's time goes with its entries more
-  /// than with its flops, and METIS's fewer flops did not make it faster (doc/smoothing.md).
+  /// Below this many flops per factor entry METIS's fewer flops did not always make a
+  /// factorisation faster (doc/smoothing.md): the time rule leaves such factors to AMD.
   static constexpr double metis_min_flops_per_entry_for_time = 300;
+  /// The entries of A's lower triangle, diagonal included: the size against which the time rule
+  /// weighs the planned flops.
+  static double lower_entries(const MatrixType& A)
+  {
+    double entries = 0;
+    for(Eigen::Index j = 0; j < A.outerSize(); ++j)
+      for(MatrixType::InnerIterator it(A, j); it; ++it) entries += it.row() >= j ? 1 : 0;
+    return entries;
+  }
   /// The numeric factorisations that the next analysis will serve (Ordering::amd_or_metis).
   void set_planned_factorizations(int factorizations) { m_planned_factorizations = std::max(factorizations, 1); }
 
@@ -391,14 +400,6 @@ private:
     }
     L->minor = L->n;
     m_info = Eigen::Success;
-  }
-
-  static double lower_entries(const MatrixType& A)
-  {
-    double entries = 0;
-    for(Eigen::Index j = 0; j < A.outerSize(); ++j)
-      for(MatrixType::InnerIterator it(A, j); it; ++it) entries += it.row() >= j ? 1 : 0;
-    return entries;
   }
 
   void analyze_once(const MatrixType& A)
