@@ -14,7 +14,8 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # ccache hashes paths under the checkout relative to it: two clones share their compilations.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$ROOT}"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build}"
-JOBS="${JOBS:-$(nproc)}"
+# nproc counts OMP_NUM_THREADS as the processors it may use; a build should not.
+JOBS="${JOBS:-$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)}"
 
 PACKAGES=(build-essential cmake ccache pkg-config doxygen
           libcgal-dev libcgal-demo libgmp-dev libmpfr-dev libboost-dev
