@@ -19,6 +19,29 @@
 namespace lapmesh {
 namespace internal {
 
+/// The uniform or cotangent pencil of the positions P on the pattern of the topology t: the
+/// diagonal of M into `mass`, and S's values, one per slot of t.inner, into the array that
+/// `stiffness_values()` returns (sized for them, every slot is written). `after_geometry()` as in
+/// assemble_pencil().
+template <typename StiffnessValues, typename AfterGeometry = void (*)()>
+void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, Laplacian laplacian, Vertex_area area,
+                                  bool parallel, Eigen::VectorXd& mass, const StiffnessValues& stiffness_values,
+                                  const AfterGeometry& after_geometry = [] {})
+{
+  require_manifold(t, to_string(laplacian));
+  if(laplacian == Laplacian::uniform) {
+    fill_uniform_stiffness(t, stiffness_values(), parallel);
+    mass.resize(t.num_vertices);
+    for(Index v = 0; v < t.num_vertices; ++v) mass[v] = t.degree(v);
+    return;
+  }
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  mass = std::move(g.vertex_area);
+  after_geometry();
+  fill_cotangent_stiffness(t, g, stiffness_values(), parallel);
+}
+
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
 /// matrix with t's pattern (repeated assembly while smoothing) only the values are written;
 /// the intrinsic Delaunay Laplacian has a pattern of its own (its flipped edges), rebuilt
@@ -51,25 +74,15 @@ void assemble_pencil(const Mesh_topology& t, const Positions& P, Laplacian lapla
     out.mass = std::move(g.vertex_area);
     return;
   }
-  require_manifold(t, to_string(laplacian));
-  const auto size_stiffness = [&] {
-    if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
-       !out.stiffness.isCompressed())
-      make_pattern_matrix(t, out.stiffness, parallel);
-  };
-  if(laplacian == Laplacian::uniform) {
-    size_stiffness();
-    fill_uniform_stiffness(t, out.stiffness.valuePtr(), parallel);
-    out.mass.resize(t.num_vertices);
-    for(Index v = 0; v < t.num_vertices; ++v) out.mass[v] = t.degree(v);
-    return;
-  }
-  Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
-  out.mass = std::move(g.vertex_area);
-  after_geometry();
-  size_stiffness();
-  fill_cotangent_stiffness(t, g, out.stiffness.valuePtr(), parallel);
+  assemble_on_topology_pattern(
+    t, P, laplacian, area, parallel, out.mass,
+    [&] {
+      if(out.stiffness.rows() != t.num_vertices || out.stiffness.nonZeros() != t.num_nonzeros() ||
+         !out.stiffness.isCompressed())
+        make_pattern_matrix(t, out.stiffness, parallel);
+      return out.stiffness.valuePtr();
+    },
+    after_geometry);
 }
 
 inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, Vertex_area area, bool parallel)

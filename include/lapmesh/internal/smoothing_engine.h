@@ -188,7 +188,7 @@ private:
                           m_t, m_P);
 
     const auto t0 = Clock::now();
-    assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
+    assemble_operator();
     require_positive_mass(m_s.laplacian, m_pencil.mass, m_s.area);
     m_report.assembly_seconds += seconds_since(t0);
 
@@ -203,9 +203,9 @@ private:
   {
     if(is_explicit()) {
       // Below the Gershgorin bound the scheme is provably stable: the Lanczos estimate is not needed.
-      const double gershgorin = gershgorin_stability_bound(m_pencil, m_free_mask);
+      const double gershgorin = gershgorin_stability_bound(operator_arrays(), m_free_mask);
       if(m_s.compute_stability_bound || m_s.lambda > gershgorin) {
-        m_report.stability_bound = explicit_stability_bound(m_pencil, m_free_mask, m_s.parallel);
+        m_report.stability_bound = explicit_stability_bound(operator_arrays(), m_free_mask, m_s.parallel);
         m_report.stability_bound_exact = true;
       } else {
         m_report.stability_bound = gershgorin;
@@ -234,6 +234,35 @@ private:
     // old factor, and refactorising directly is cheaper than failed CG runs followed by a
     // factorisation anyway.
     m_try_preconditioned_cg = m_s.reuse_factorization;
+  }
+
+  /// The explicit scheme keeps the stiffness of the uniform and cotangent Laplacians, whose
+  /// pattern is the topology's, as values alone in a working array: its mapping is then kept
+  /// for the next call (mapping_cache.h), where a sparse matrix's blocks come from glibc's heap,
+  /// which a caller's frees between calls may have trimmed, so that they are faulted in afresh.
+  bool keeps_values_on_topology_pattern() const
+  {
+    return is_explicit() && m_s.laplacian != Laplacian::intrinsic_delaunay;
+  }
+
+  /// (S, M) of the current positions: into m_pencil, or S's values into m_stiffness_values.
+  void assemble_operator()
+  {
+    if(!keeps_values_on_topology_pattern()) {
+      assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
+      return;
+    }
+    assemble_on_topology_pattern(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil.mass, [&] {
+      m_stiffness_values.resize(std::size_t(m_t.num_nonzeros()));
+      return m_stiffness_values.data();
+    });
+  }
+
+  /// The arrays of the operator that the explicit scheme reads.
+  Pencil_arrays operator_arrays() const
+  {
+    if(keeps_values_on_topology_pattern()) return Pencil_arrays(m_t, m_stiffness_values.data(), m_pencil.mass);
+    return Pencil_arrays(m_pencil);
   }
 
   /// Step `it` (0-based): P after it + 1 steps, fixed vertices untouched.
@@ -265,7 +294,7 @@ private:
     const auto t0 = Clock::now();
     rebuild_operator_after(it, [&] {
       if(m_rebuild_stiffness) {
-        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
+        assemble_operator();
       } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
         Laplacian_pencil current;
         assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
@@ -350,11 +379,11 @@ private:
   void explicit_step()
   {
     const auto t0 = Clock::now();
-    const auto& S = m_pencil.stiffness;
-    const Index* outer = S.outerIndexPtr();
-    const Index* inner = S.innerIndexPtr();
-    const double* values = S.valuePtr();
-    const Index nonzeros = S.nonZeros();
+    const Pencil_arrays S = operator_arrays();
+    const Index* outer = S.outer;
+    const Index* inner = S.inner;
+    const double* values = S.values;
+    const Index nonzeros = S.nonzeros();
     const Positions& P = m_P;
     // Divergence shows as coordinates that are no longer finite: checked on the values as they
     // are written, which spares a pass over all positions after each step. x - x is zero for a
@@ -375,7 +404,7 @@ private:
           const double* p = P.data() + 3 * std::size_t(inner[k]);
           x += w * p[0]; y += w * p[1]; z += w * p[2];
         }
-        const double c = m_s.lambda / m_pencil.mass[i];
+        const double c = m_s.lambda / S.mass[i];
         const double nx = P(i, 0) + c * x, ny = P(i, 1) + c * y, nz = P(i, 2) + c * z;
         m_next(i, 0) = nx;
         m_next(i, 1) = ny;
@@ -522,7 +551,8 @@ private:
   Smoothing_report m_report;
   std::vector<char> m_free_mask;
   std::optional<Shape_restoration> m_restoration;
-  Laplacian_pencil m_pencil;
+  Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S
+  Working_array<double> m_stiffness_values;  ///< S on the topology's pattern (explicit scheme)
   bool m_rebuild_stiffness = false;
   bool m_rebuild = false;  ///< the operator (or its mass) follows the positions
   // explicit

@@ -14,6 +14,7 @@
 #include <Eigen/SparseCore>
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -36,23 +37,49 @@ inline std::vector<char> free_vertex_mask(const Mesh_topology& t, bool fix_bound
   return free_mask;
 }
 
+/// The arrays of a pencil that the explicit scheme reads: S by compressed rows (S is symmetric,
+/// so Eigen's compressed columns serve as rows) and the diagonal of M. Either a
+/// Laplacian_pencil's, or stiffness values on the pattern of a topology (the smoothing engine's,
+/// kept in a working array).
+struct Pencil_arrays
+{
+  Index size = 0;
+  const Index* outer = nullptr;  ///< size + 1 row starts
+  const Index* inner = nullptr;
+  const double* values = nullptr;
+  const double* mass = nullptr;
+
+  /// A compressed pencil's arrays (assembled pencils are compressed).
+  /// Implicit, so that a Laplacian_pencil is passed where its arrays are read.
+  Pencil_arrays(const Laplacian_pencil& pencil)
+    : size(Index(pencil.mass.size())), outer(pencil.stiffness.outerIndexPtr()),
+      inner(pencil.stiffness.innerIndexPtr()), values(pencil.stiffness.valuePtr()), mass(pencil.mass.data())
+  {
+    assert(pencil.stiffness.isCompressed() && pencil.stiffness.rows() == size);
+  }
+  Pencil_arrays(const Mesh_topology& t, const double* stiffness_values, const Eigen::VectorXd& mass_diagonal)
+    : size(t.num_vertices), outer(t.outer.data()), inner(t.inner.data()), values(stiffness_values),
+      mass(mass_diagonal.data())
+  {}
+  Index nonzeros() const { return outer ? outer[size] : 0; }
+};
+
 /// Largest eigenvalue of -M_FF^-1 S_FF (the free block of -L), by Lanczos on the symmetric
 /// form M^-1/2 (-S) M^-1/2, which has the same spectrum. Extreme Ritz values converge first;
 /// no reorthogonalisation is needed for the largest one (ghost copies do not move it). The
 /// returned value is the Ritz value plus its residual bound |beta_k s_k|, so that 2 / result
 /// errs on the safe side. `free_mask[i]` = 0 for fixed vertices.
-inline double largest_eigenvalue_of_minus_laplacian(const Laplacian_pencil& pencil,
+inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
                                                      const std::vector<char>& free_mask, bool parallel,
                                                      int max_steps = 400, double rel_tol = 1e-9)
 {
-  const Index n = Index(pencil.mass.size());
-  const auto& S = pencil.stiffness;
+  const Index n = pencil.size;
   Eigen::VectorXd inv_sqrt_m(n), scaled(n);
   for(Index i = 0; i < n; ++i) inv_sqrt_m[i] = free_mask[i] ? 1.0 / std::sqrt(pencil.mass[i]) : 0.0;
-  const Index* outer = S.outerIndexPtr();
-  const Index* inner = S.innerIndexPtr();
-  const double* values = S.valuePtr();
-  const Index nonzeros = S.nonZeros();
+  const Index* outer = pencil.outer;
+  const Index* inner = pencil.inner;
+  const double* values = pencil.values;
+  const Index nonzeros = pencil.nonzeros();
   // The neighbours' values are gathered from one array, scaled beforehand, and prefetched well
   // ahead, as in the explicit step: the gathers miss the caches on a large mesh.
   auto apply = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
@@ -115,7 +142,7 @@ inline double stability_bound_of(double mu) { return mu > 0 ? 2.0 / mu : std::nu
 
 /// The explicit scheme's stability bound 2 / mu_max of the pencil on the free vertices
 /// (Lanczos estimate, on the safe side).
-inline double explicit_stability_bound(const Laplacian_pencil& pencil, const std::vector<char>& free_mask,
+inline double explicit_stability_bound(const Pencil_arrays& pencil, const std::vector<char>& free_mask,
                                        bool parallel)
 {
   return stability_bound_of(largest_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel));
@@ -124,14 +151,13 @@ inline double explicit_stability_bound(const Laplacian_pencil& pencil, const std
 /// Gershgorin on M^-1 S: mu_max <= G = max_i (|S_ii| + sum_j |S_ij|) / M_i over the free
 /// vertices, so 2 / G is a lower bound of the stability bound (infinity when G = 0). Below it
 /// the explicit scheme is provably stable without the Lanczos estimate.
-inline double gershgorin_stability_bound(const Laplacian_pencil& pencil, const std::vector<char>& free_mask)
+inline double gershgorin_stability_bound(const Pencil_arrays& pencil, const std::vector<char>& free_mask)
 {
-  const auto& S = pencil.stiffness;
   double G = 0;
-  for(Index i = 0; i < Index(pencil.mass.size()); ++i) {
+  for(Index i = 0; i < pencil.size; ++i) {
     if(!free_mask[i]) continue;
     double r = 0;
-    for(Index k = S.outerIndexPtr()[i]; k < S.outerIndexPtr()[i + 1]; ++k) r += std::abs(S.valuePtr()[k]);
+    for(Index k = pencil.outer[i]; k < pencil.outer[i + 1]; ++k) r += std::abs(pencil.values[k]);
     G = std::max(G, r / pencil.mass[i]);
   }
   return G > 0 ? 2.0 / G : std::numeric_limits<double>::infinity();
