@@ -153,6 +153,7 @@ public:
       ++m_report.iterations;
       if(m_s.progress) m_s.progress(it + 1, m_s.iterations);
     }
+    take_positions_from_alternate();
     check_last_positions();
     return m_report;
   }
@@ -211,7 +212,10 @@ private:
         m_report.stability_bound = gershgorin;
       }
       m_report.above_stability_bound = m_s.lambda > m_report.stability_bound;
-      m_next.resize(m_P.rows(), 3);
+      if(alternates_positions())
+        m_alternate.resize(3 * std::size_t(m_P.rows()));
+      else
+        m_next.resize(m_P.rows(), 3);
       return;
     }
     const auto t0 = Clock::now();
@@ -256,6 +260,20 @@ private:
       m_stiffness_values.resize(std::size_t(m_t.num_nonzeros()));
       return m_stiffness_values.data();
     });
+  }
+
+  /// Whether the explicit steps alternate between m_P and m_alternate, a working array whose
+  /// mapping the next call reuses (as the operator's values): only where nothing reads m_P
+  /// between steps. Where the operator follows the positions or a restoration rescales them,
+  /// each step's result is swapped into m_P instead, which spares a copy per step.
+  bool alternates_positions() const { return is_explicit() && !m_rebuild && !m_restoration->rescales(); }
+
+  /// Copies the latest positions into m_P when the last step left them in m_alternate.
+  void take_positions_from_alternate()
+  {
+    if(!m_positions_in_alternate) return;
+    std::copy(m_alternate.begin(), m_alternate.end(), m_P.data());
+    m_positions_in_alternate = false;
   }
 
   /// The arrays of the operator that the explicit scheme reads.
@@ -384,7 +402,9 @@ private:
     const Index* inner = S.inner;
     const double* values = S.values;
     const Index nonzeros = S.nonzeros();
-    const Positions& P = m_P;
+    const bool alternating = alternates_positions();
+    const double* P = m_positions_in_alternate ? m_alternate.data() : m_P.data();
+    double* next = !alternating ? m_next.data() : m_positions_in_alternate ? m_P.data() : m_alternate.data();
     // Divergence shows as coordinates that are no longer finite: checked on the values as they
     // are written, which spares a pass over all positions after each step. x - x is zero for a
     // finite x and NaN otherwise, so a part's sum of them stays zero while all are finite.
@@ -392,29 +412,34 @@ private:
     for_each_part(m_t.num_vertices, Index(4096), m_s.parallel, [&](Index, Index first, Index last) {
       double non_finite = 0;
       for(Index i = first; i < last; ++i) {
+        const double* p_i = P + 3 * std::size_t(i);
+        double* next_i = next + 3 * std::size_t(i);
         if(!m_free_mask[i]) {
-          m_next.row(i) = P.row(i);
+          next_i[0] = p_i[0]; next_i[1] = p_i[1]; next_i[2] = p_i[2];
           continue;
         }
         double x = 0, y = 0, z = 0;
         for(Index k = outer[i]; k < outer[i + 1]; ++k) {
           if(k + sparse_gather_prefetch_distance < nonzeros)
-            prefetch(P.data() + 3 * std::size_t(inner[k + sparse_gather_prefetch_distance]));
+            prefetch(P + 3 * std::size_t(inner[k + sparse_gather_prefetch_distance]));
           const double w = values[k];
-          const double* p = P.data() + 3 * std::size_t(inner[k]);
+          const double* p = P + 3 * std::size_t(inner[k]);
           x += w * p[0]; y += w * p[1]; z += w * p[2];
         }
         const double c = m_s.lambda / S.mass[i];
-        const double nx = P(i, 0) + c * x, ny = P(i, 1) + c * y, nz = P(i, 2) + c * z;
-        m_next(i, 0) = nx;
-        m_next(i, 1) = ny;
-        m_next(i, 2) = nz;
+        const double nx = p_i[0] + c * x, ny = p_i[1] + c * y, nz = p_i[2] + c * z;
+        next_i[0] = nx;
+        next_i[1] = ny;
+        next_i[2] = nz;
         non_finite += (nx - nx) + (ny - ny) + (nz - nz);
       }
       if(!(non_finite == 0)) finite.store(false, std::memory_order_relaxed);
     });
     m_step_finite = finite.load();
-    m_P.swap(m_next);
+    if(alternating)
+      m_positions_in_alternate = !m_positions_in_alternate;
+    else
+      m_P.swap(m_next);
     m_report.solve_seconds += seconds_since(t0);
   }
 
@@ -556,7 +581,9 @@ private:
   bool m_rebuild_stiffness = false;
   bool m_rebuild = false;  ///< the operator (or its mass) follows the positions
   // explicit
-  Positions m_next;
+  Positions m_next;                      ///< the next positions, swapped into m_P after each step
+  Working_array<double> m_alternate;     ///< or the other array of the two the steps alternate between
+  bool m_positions_in_alternate = false; ///< the latest positions are in m_alternate, not in m_P
   bool m_step_finite = true;  ///< the last explicit step wrote finite positions only
   // implicit / conformal
   std::optional<Constrained_spd_system> m_system;
