@@ -201,6 +201,74 @@ TEST(Smoothing, TheLastFactorisationRunsWithoutTheCornerListsAndThePattern)
   }
 }
 
+// The denoising study measures the positions in the progress callback: after each explicit step
+// they must hold that step's result, and the run without a callback (whose steps alternate
+// between the positions and an array of the engine's) must end at the same positions, to the
+// bit, for an odd and an even number of steps and when it diverges.
+TEST(Smoothing, ExplicitPositionsAreThoseOfEachStepInTheProgressCallback)
+{
+  using namespace lapmesh::internal;
+  const lapmesh::Triangle_soup soup = lapmesh::icosphere(3);
+  const Index n = Index(soup.points.size());
+  Working_array<Index> triangles;
+  for(const auto& f : soup.triangles) triangles.insert(triangles.end(), f.begin(), f.end());
+  const Mesh_topology t = build_topology(n, triangles);
+  Positions P0(n, 3);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+  for(Index i = 0; i < n; ++i)
+    P0.row(i) = Eigen::RowVector3d(soup.points[i][0] + jitter(rng), soup.points[i][1] + jitter(rng),
+                                   soup.points[i][2] + jitter(rng));
+  for(const lapmesh::Laplacian lap : {lapmesh::Laplacian::uniform, lapmesh::Laplacian::cotangent}) {
+    Smoothing_settings s;
+    s.scheme = lapmesh::Smoothing_scheme::explicit_euler;
+    s.laplacian = lap;
+    s.area = lapmesh::Vertex_area::mixed;
+    s.fixed_operator = true;
+    Positions bound_probe = P0;
+    s.compute_stability_bound = true;
+    s.iterations = 1;
+    s.lambda = 1e-9;
+    const double bound = smooth_positions(t, bound_probe, {}, s).stability_bound;
+    s.compute_stability_bound = false;
+    s.lambda = 0.5 * bound;
+    s.iterations = 4;
+    std::vector<Positions> seen;
+    Positions P = P0;
+    s.progress = [&](int, int) { seen.push_back(P); };
+    smooth_positions(t, P, {}, s);
+    ASSERT_EQ(seen.size(), 4u);
+    s.progress = nullptr;
+    for(int steps = 1; steps <= 4; ++steps) {
+      s.iterations = steps;
+      Positions Q = P0;
+      smooth_positions(t, Q, {}, s);
+      EXPECT_EQ((Q - seen[std::size_t(steps - 1)]).cwiseAbs().maxCoeff(), 0.0)
+        << lapmesh::to_string(lap) << ", " << steps;
+      EXPECT_GT((Q - P0).cwiseAbs().maxCoeff(), 1e-6) << lapmesh::to_string(lap) << ", " << steps;
+    }
+    // Far above the bound: the error, and the positions that diverged in the caller's array,
+    // whether the step that diverged wrote into the engine's array (odd) or the caller's (even).
+    s.iterations = 400;
+    bool odd = false, even = false;
+    for(double above = 1e6; above < 1e16 && !(odd && even); above *= 10) {
+      s.lambda = above * bound;
+      Positions D = P0;
+      try {
+        smooth_positions(t, D, {}, s);
+        ADD_FAILURE() << lapmesh::to_string(lap) << ": no divergence at " << above << " x the bound";
+      } catch(const lapmesh::Numerical_error& e) {
+        const std::string what = e.what(), key = "diverged at iteration ";
+        ASSERT_NE(what.find(key), std::string::npos) << what;
+        const int step = std::stoi(what.substr(what.find(key) + key.size()));
+        (step % 2 ? odd : even) = true;
+        EXPECT_FALSE(D.allFinite()) << lapmesh::to_string(lap) << ", step " << step;
+      }
+    }
+    EXPECT_TRUE(odd && even) << lapmesh::to_string(lap);
+  }
+}
+
 TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
 {
   for(lapmesh::Laplacian lap : {lapmesh::Laplacian::cotangent, lapmesh::Laplacian::uniform}) {

@@ -74,7 +74,9 @@ struct Smoothing_settings
   /// factor (relative residual 1e-12) and refactorise only when that needs > 10 iterations
   /// (after the first such failure, refactorise directly for the remaining steps).
   bool reuse_factorization = false;
-  std::function<void(int, int)> progress;  ///< called after each iteration (done, total)
+  /// Called after each iteration (done, total), when the positions hold that iteration's result
+  /// (the denoising study measures them there).
+  std::function<void(int, int)> progress;
   Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
 
@@ -264,9 +266,13 @@ private:
 
   /// Whether the explicit steps alternate between m_P and m_alternate, a working array whose
   /// mapping the next call reuses (as the operator's values): only where nothing reads m_P
-  /// between steps. Where the operator follows the positions or a restoration rescales them,
-  /// each step's result is swapped into m_P instead, which spares a copy per step.
-  bool alternates_positions() const { return is_explicit() && !m_rebuild && !m_restoration->rescales(); }
+  /// between steps. Where the operator follows the positions, a restoration rescales them or a
+  /// progress callback may read them, each step's result is swapped into m_P instead, which
+  /// spares a copy per step.
+  bool alternates_positions() const
+  {
+    return is_explicit() && !m_rebuild && !m_restoration->rescales() && !m_s.progress;
+  }
 
   /// Copies the latest positions into m_P when the last step left them in m_alternate.
   void take_positions_from_alternate()
@@ -387,10 +393,12 @@ private:
     m_restoration->apply(m_t, m_P);
     // The explicit step checks the values it writes; a restoration rescales them, so they are
     // checked again after it.
-    if(is_explicit() && !(m_step_finite && (!m_restoration->rescales() || m_P.allFinite())))
+    if(is_explicit() && !(m_step_finite && (!m_restoration->rescales() || m_P.allFinite()))) {
+      take_positions_from_alternate();  // the caller sees the positions that diverged
       throw Numerical_error("explicit smoothing diverged at iteration " + std::to_string(it + 1) + " (lambda " +
                             std::to_string(m_s.lambda) + " is above the stability bound " +
                             std::to_string(m_report.stability_bound) + ")");
+    }
   }
 
   /// P <- P + lambda M^-1 S P on the free vertices.
