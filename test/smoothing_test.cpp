@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <cstdlib>
 #include <cstring>
@@ -349,6 +350,15 @@ TEST(Smoothing, ExplicitStepsAreThoseOfThePencil)
                                   " steps";
         EXPECT_GT(moved, 1e-4) << label;
         EXPECT_LT(largest, 1e-13) << label;
+        // The front end's progress callback sees the counts alone: the same steps, to the bit.
+        Mesh with_progress = input;
+        int calls = 0;
+        const std::function<void(int, int)> count_calls = [&](int, int) { ++calls; };
+        lapmesh::smooth_laplacian_explicit(
+          with_progress, lambda,
+          LP::progress_callback(count_calls, LP::fixed_operator(fixed_operator, np).number_of_iterations(iterations)));
+        EXPECT_EQ(calls, iterations) << label;
+        for(auto v : vertices(m)) ASSERT_EQ(m.point(v), with_progress.point(v)) << label;
       }
 }
 

@@ -113,8 +113,10 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.compute_stability_bound = choose_parameter(get_parameter(np, internal_np::compute_stability_bound), false);
   s.use_cholmod = choose_parameter(get_parameter(np, internal_np::use_cholmod), true);
   s.reuse_factorization = choose_parameter(get_parameter(np, internal_np::reuse_factorization), false);
-  if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value)
+  if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value) {
     s.progress = get_parameter(np, internal_np::progress_callback);
+    s.progress_reads_positions = false;  // the mesh is written after the last step
+  }
   if constexpr(!is_default_parameter<NamedParameters, CGAL::internal_np::sparse_linear_solver_t>::value) {
     // A CGAL solver traits object (SparseLinearAlgebraWithFactorTraits_d, e.g.
     // CGAL::Eigen_solver_traits<...>): factor() once per system, linear_solver() per column.

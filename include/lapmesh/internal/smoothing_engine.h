@@ -77,6 +77,9 @@ struct Smoothing_settings
   /// Called after each iteration (done, total), when the positions hold that iteration's result
   /// (the denoising study measures them there).
   std::function<void(int, int)> progress;
+  /// False where `progress` cannot see the positions (the CGAL front end's callback, which gets
+  /// the counts alone, while the positions it smooths are its own copy).
+  bool progress_reads_positions = true;
   Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
 
@@ -271,7 +274,8 @@ private:
   /// spares a copy per step.
   bool alternates_positions() const
   {
-    return is_explicit() && !m_rebuild && !m_restoration->rescales() && !m_s.progress;
+    return is_explicit() && !m_rebuild && !m_restoration->rescales() &&
+           !(m_s.progress && m_s.progress_reads_positions);
   }
 
   /// Copies the latest positions into m_P when the last step left them in m_alternate.
