@@ -28,8 +28,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <functional>
-#include <string>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -41,6 +39,8 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <functional>
+#include <string>
 
 using namespace lapmesh_test;
 namespace LP = lapmesh::parameters;
@@ -226,12 +226,9 @@ TEST(Smoothing, ExplicitPositionsAreThoseOfEachStepInTheProgressCallback)
     s.laplacian = lap;
     s.area = lapmesh::Vertex_area::mixed;
     s.fixed_operator = true;
-    Positions bound_probe = P0;
-    s.compute_stability_bound = true;
-    s.iterations = 1;
-    s.lambda = 1e-9;
-    const double bound = smooth_positions(t, bound_probe, {}, s).stability_bound;
-    s.compute_stability_bound = false;
+    lapmesh::Laplacian_pencil pencil;
+    assemble_pencil(t, P0, lap, s.area, false, pencil);
+    const double bound = explicit_stability_bound(pencil, std::vector<char>(std::size_t(n), 1), false);
     s.lambda = 0.5 * bound;
     s.iterations = 4;
     std::vector<Positions> seen;
