@@ -8,12 +8,19 @@
 // meshes, so that every call faults its blocks in again one 4 KiB page at a time. Kept here, a
 // freed mapping serves the next array that fits in it, warm, with no fault.
 //
+// How a request is served: from the smallest cached mapping that holds it, whose tail stays
+// cached; where none does, a new mapping takes over the pages of the cached ones (mremap moves
+// them, written as they are, without copying) and faults in fresh pages only for the rest. The
+// arrays of a call come in another order than they were freed (a call's small arrays first, its
+// large ones after), so with whole mappings only, the small arrays would take the large mappings
+// apart and the large arrays find nothing left that fits.
+//
 // The bounds: the cache holds at most working_memory_cache_limit() bytes (1 GiB, or an eighth of
 // the physical memory where that is less; set_working_memory_cache_limit() changes it, 0 turns
-// the cache off), at most max_entries mappings, and none beside a new mapping: a request that
-// no cached mapping fits unmaps them all first, so that lapmesh's own arrays never need more
-// memory than they would without the cache. A computation about to allocate much memory of
-// another kind (a sparse factorisation) empties it as well (release_working_memory()).
+// the cache off) in at most max_entries mappings, and no fresh page is faulted in while a cached
+// one is left: lapmesh's own arrays never need more memory than they would without the cache. A
+// computation about to allocate much memory of another kind (a sparse factorisation) empties it
+// (release_working_memory()).
 #ifndef LAPMESH_INTERNAL_MAPPING_CACHE_H
 #define LAPMESH_INTERNAL_MAPPING_CACHE_H
 
@@ -46,23 +53,50 @@ public:
     return *cache;
   }
 
-  /// A cached mapping of exactly `bytes` (the smallest that holds them, its tail unmapped), or
-  /// nullptr; on nullptr nothing is cached any more, so that the caller's new mapping does not
-  /// lie beside cached ones.
+  /// The head of the smallest cached mapping of at least `bytes` bytes (whole pages), its tail
+  /// kept in the cache; nullptr where none is that large.
   void* take(std::size_t bytes) noexcept
   {
     std::lock_guard<std::mutex> lock(m_mutex);
     std::size_t best = m_count;
     for(std::size_t i = 0; i < m_count; ++i)
       if(m_entries[i].bytes >= bytes && (best == m_count || m_entries[i].bytes < m_entries[best].bytes)) best = i;
-    if(best == m_count) {
-      unmap_all();
-      return nullptr;
+    if(best == m_count) return nullptr;
+    Entry& e = m_entries[best];
+    void* head = e.address;
+    if(e.bytes == bytes) {
+      erase(best);
+    } else {
+      e.address = static_cast<char*>(e.address) + bytes;
+      e.bytes -= bytes;
+      m_total -= bytes;
     }
-    const Entry e = m_entries[best];
-    erase(best);
-    if(e.bytes > bytes) unmap(static_cast<char*>(e.address) + bytes, e.bytes - bytes);
-    return e.address;
+    return head;
+  }
+
+  /// Moves the cached mappings, oldest first, over the start of [address, address + bytes), a
+  /// new mapping of whole huge pages not written yet, until it is full or the cache empty (the
+  /// last one moved may leave its tail cached). Returns the bytes moved. A part the kernel does
+  /// not move (a mapping it has split into areas of other attributes) is unmapped instead: its
+  /// place in the new mapping is faulted in fresh.
+  std::size_t move_into(void* address, std::size_t bytes) noexcept
+  {
+    std::lock_guard<std::mutex> lock(m_mutex);
+    std::size_t moved = 0;
+    while(m_count > 0 && moved < bytes) {
+      Entry& e = m_entries[0];
+      const std::size_t part = std::min(e.bytes, bytes - moved);
+      move_pages(static_cast<char*>(e.address), static_cast<char*>(address) + moved, part);
+      moved += part;
+      if(part == e.bytes) {
+        erase(0);
+      } else {
+        e.address = static_cast<char*>(e.address) + part;
+        e.bytes -= part;
+        m_total -= part;
+      }
+    }
+    return moved;
   }
 
   /// Keeps the mapping [address, address + bytes) for a later take(); false (nothing kept) when
@@ -120,6 +154,25 @@ private:
     if(pages > 0 && page > 0) return std::size_t(pages) * std::size_t(page);
 #endif
     return default_limit * 8;
+  }
+  /// Moves the pages of [from, from + bytes) to [to, to + bytes), replacing what lies there.
+  /// mremap moves one area of the kernel's at a time: a range that spans several is halved, on
+  /// huge page boundaries, until each part lies in one.
+  static void move_pages(char* from, char* to, std::size_t bytes) noexcept
+  {
+#if defined(__linux__) && defined(MREMAP_FIXED)
+    if(mremap(from, bytes, bytes, MREMAP_MAYMOVE | MREMAP_FIXED, to) != MAP_FAILED) return;
+    constexpr std::size_t page = std::size_t(1) << 21;
+    if(bytes > page) {
+      const std::size_t half = (bytes / 2 + page - 1) / page * page;
+      move_pages(from, to, half);
+      move_pages(from + half, to + half, bytes - half);
+      return;
+    }
+#else
+    (void)to;
+#endif
+    unmap(from, bytes);
   }
   static void unmap(void* address, std::size_t bytes) noexcept
   {

@@ -11,7 +11,7 @@
 // extracted triangles, the corner geometry) of at least 4 MiB get mappings of their own, on 2 MiB
 // boundaries and advised whole (allocate_large()): together they would take the heap past its
 // trim threshold. Freed, such a mapping is kept for the next call's arrays (mapping_cache.h),
-// which find it warm, as glibc's heap would have kept it below its trim threshold. Where a fault is a trip
+// which find its pages warm, as glibc's heap would have kept them below its trim threshold. Where a fault is a trip
 // to the hypervisor, a burst of 4 KiB faults also slows the next pass over other memory (the
 // caller's mesh), likely because its mappings fall out of the hypervisor's caches. The blocks of
 // Eigen's arrays come from glibc: only those of at least 32 MiB, which glibc maps apart, are
@@ -111,15 +111,16 @@ inline bool maps_apart(std::size_t bytes) noexcept
 }
 
 /// `bytes` of memory, not initialised: when maps_apart(bytes), a block of whole 2 MiB
-/// pages advised huge (a cached one that fits, else a fresh one), else from operator new. Throws
-/// std::bad_alloc.
+/// pages advised huge (a cached one that holds it, else a new mapping that takes over the cached
+/// pages first, mapping_cache.h), else from operator new. Throws std::bad_alloc.
 inline void* allocate_large(std::size_t bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   if(maps_apart(bytes)) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
-    if(void* cached = Mapping_cache::instance().take(size)) return cached;
+    Mapping_cache& cache = Mapping_cache::instance();
+    if(void* cached = cache.take(size)) return cached;
     // Map one huge page more and unmap what lies outside the first aligned block.
     void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if(mapped == MAP_FAILED) throw std::bad_alloc();
@@ -128,6 +129,7 @@ inline void* allocate_large(std::size_t bytes)
     if(first > begin) munmap(mapped, first - begin);
     munmap(reinterpret_cast<void*>(first + size), begin + huge_page_bytes - first);
     madvise(reinterpret_cast<void*>(first), size, MADV_HUGEPAGE);
+    cache.move_into(reinterpret_cast<void*>(first), size);
     return reinterpret_cast<void*>(first);
   }
 #endif
