@@ -236,9 +236,10 @@ TEST(Curvature, PropertyMapApiWritesTheSameValuesOnSurfaceMeshAndPolyhedron)
   for(auto v : vertices(poly)) EXPECT_NEAR(gauss[v], arrays.gaussian[Eigen::Index(i++)], 1e-12 * arrays.gaussian.cwiseAbs().maxCoeff());
 }
 
-// compute_gaussian_curvature() skips the Laplacian, the normals and k1, k2: it must still give
-// vertex_curvatures()'s K bitwise, boundary and vertices in no face included.
-TEST(Curvature, GaussianAloneIsBitwiseTheFullComputations)
+// compute_gaussian_curvature() skips the Laplacian, the normals and k1, k2, and
+// compute_mean_curvature() the angles and the arrays of normals and Laplacians: they must still
+// give vertex_curvatures()'s K and H bitwise, boundary and vertices in no face included.
+TEST(Curvature, GaussianAndMeanAloneAreBitwiseTheFullComputations)
 {
   lapmesh::Triangle_soup soup = lapmesh::plane_patch(9, 0.3, 5);
   for(auto& p : soup.points) p[2] = 0.3 * p[0] * p[0] - 0.2 * p[1] * p[1];  // a saddle with a boundary
@@ -260,6 +261,18 @@ TEST(Curvature, GaussianAloneIsBitwiseTheFullComputations)
       }
       EXPECT_TRUE(std::isnan(K[Mesh::Vertex_index(num_vertices(m) - 1)]));
       m.remove_property_map(K);
+
+      auto H = m.add_property_map<Mesh::Vertex_index, double>("v:H_alone").first;
+      lapmesh::compute_mean_curvature(m, H, np);
+      for(auto v : vertices(m)) {
+        const double expected = full.mean[v.idx()];
+        if(std::isnan(expected))
+          EXPECT_TRUE(std::isnan(H[v])) << v;
+        else
+          EXPECT_EQ(H[v], expected) << lapmesh::to_string(kind) << " " << lapmesh::to_string(area) << " " << v;
+      }
+      EXPECT_TRUE(std::isnan(H[Mesh::Vertex_index(num_vertices(m) - 1)]));
+      m.remove_property_map(H);
     }
 }
 
@@ -287,6 +300,13 @@ TEST(Curvature, ParallelEqualsSequentialBitwise)
     double largest_difference = 0;
     for(const auto v : vertices(copy))
       largest_difference = std::max(largest_difference, std::abs(K[v] - a.gaussian[Eigen::Index(v.idx())]));
+    EXPECT_EQ(largest_difference, 0.0);
+
+    auto H = copy.add_property_map<Mesh::Vertex_index, double>("v:H", 0.0).first;
+    lapmesh::compute_mean_curvature<CGAL::Parallel_if_available_tag>(copy, H, LP::vertex_area(area));
+    largest_difference = 0;
+    for(const auto v : vertices(copy))
+      largest_difference = std::max(largest_difference, std::abs(H[v] - a.mean[Eigen::Index(v.idx())]));
     EXPECT_EQ(largest_difference, 0.0);
   }
 }

@@ -137,6 +137,26 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   return out;
 }
 
+/// H alone, as compute_curvatures() computes it (bitwise). With the cotangent Laplacian each
+/// vertex's row of L x and its normal are used where they are formed, not kept as n x 3 arrays.
+inline Eigen::VectorXd compute_mean_curvature_only(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
+                                                   Vertex_area area, bool parallel, double mollification)
+{
+  if(laplacian != Laplacian::cotangent)
+    return compute_curvatures(t, P, laplacian, area, false, parallel, mollification).mean;
+  require_manifold(t, to_string(laplacian));
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, true}, parallel, g);
+  require_positive_vertex_areas(g.vertex_area, area);
+  Eigen::VectorXd mean(t.num_vertices);
+  for_each_cotangent_laplacian_row(t, g, P, parallel, [&](Index v, const Eigen::Vector3d& row) {
+    const Eigen::Vector3d Lx = row / g.vertex_area[v];
+    const Eigen::Vector3d nv = unit_vertex_normal(g.face_normal_sum.row(v).transpose());
+    mean[v] = 0.5 * Lx.norm() * mean_curvature_sign(Lx, nv);
+  });
+  return mean;
+}
+
 /// K alone, as compute_curvatures() computes it (bitwise), without the Laplacian of the
 /// positions, the normals and the principal curvatures: the angle sums and the vertex areas.
 inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, const Positions& P, Laplacian laplacian,
@@ -154,15 +174,22 @@ inline Eigen::VectorXd compute_gaussian_curvature_only(const Mesh_topology& t, c
   return K;
 }
 
+/// The mesh that curvatures_of() and the mean curvature alone compute on.
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
-auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_gaussian)
+auto extract_for_curvatures(const TriangleMesh& tm, const NamedParameters& np)
 {
   // The cotangent sums and the angles need the corners only; the uniform Laplacian walks the
   // pattern's rows and the intrinsic triangulation flips its edges.
+  const bool cotangent = choose_laplacian(np) == Laplacian::cotangent;
+  return extract_mesh(tm, np, cotangent ? Topology_detail::corners : Topology_detail::pattern,
+                      is_parallel<ConcurrencyTag>(), cotangent ? Vertex_order::local_if_scattered : Vertex_order::as_read);
+}
+
+template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
+auto curvatures_of(const TriangleMesh& tm, const NamedParameters& np, bool with_gaussian)
+{
   const Laplacian laplacian = choose_laplacian(np);
-  const bool cotangent = laplacian == Laplacian::cotangent;
-  auto mesh = extract_mesh(tm, np, cotangent ? Topology_detail::corners : Topology_detail::pattern,
-                           is_parallel<ConcurrencyTag>(), cotangent ? Vertex_order::local_if_scattered : Vertex_order::as_read);
+  auto mesh = extract_for_curvatures<ConcurrencyTag>(tm, np);
   Vertex_curvatures c = mesh.naming_input_vertices([&] {
     return compute_curvatures(mesh.topology, mesh.positions, laplacian, choose_vertex_area(np), with_gaussian,
                               is_parallel<ConcurrencyTag>(), choose_mollification(np));
@@ -255,7 +282,8 @@ void compute_vertex_curvatures(const TriangleMesh& tm, const NamedParameters& np
   }
 }
 
-/// @brief writes the signed mean curvature H into `mean_curvature_map` (skips the angle pass).
+/// @brief writes the signed mean curvature H into `mean_curvature_map` (skips the angle pass,
+/// and keeps no per-vertex Laplacian or normal).
 /// @param tm the mesh
 /// @param mean_curvature_map writable vertex map receiving H
 /// @param np named parameters as in vertex_curvatures()
@@ -264,8 +292,15 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curvature_map,
                             const NamedParameters& np = CGAL::parameters::default_values())
 {
-  const auto [vertices, c] = internal::curvatures_of<ConcurrencyTag>(tm, np, false);
-  internal::write_row_values(vertices, c.mean, mean_curvature_map);
+  auto mesh = internal::extract_for_curvatures<ConcurrencyTag>(tm, np);
+  Eigen::VectorXd mean = mesh.naming_input_vertices([&] {
+    return internal::compute_mean_curvature_only(mesh.topology, mesh.positions, internal::choose_laplacian(np),
+                                                 internal::choose_vertex_area(np),
+                                                 internal::is_parallel<ConcurrencyTag>(),
+                                                 internal::choose_mollification(np));
+  });
+  if(!mesh.rows_are_topology_vertices()) mean = mesh.to_rows(mean, std::numeric_limits<double>::quiet_NaN());
+  internal::write_row_values(mesh.vertex_rows, mean, mean_curvature_map);
 }
 
 /// @brief writes the angle-deficit Gaussian curvature K into `gaussian_curvature_map`.

@@ -331,24 +331,30 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   });
 }
 
+/// The unit vector along a vertex's sum of incident face cross products; zero where the sum is.
+inline Eigen::Vector3d unit_vertex_normal(const Eigen::Vector3d& face_normal_sum)
+{
+  const double len = face_normal_sum.norm();
+  return len > 0 ? Eigen::Vector3d(face_normal_sum / len) : Eigen::Vector3d::Zero();
+}
+
 /// Area-weighted unit vertex normals from the sums of the incident face cross products
-/// (Corner_geometry::face_normal_sum), normalised in place; zero where the sum is.
+/// (Corner_geometry::face_normal_sum), normalised in place.
 inline Positions vertex_normals(Positions face_normal_sums, bool parallel)
 {
   for_each_index(Index(face_normal_sums.rows()), parallel, [&](Index v) {
-    const Eigen::Vector3d s = face_normal_sums.row(v);
-    const double len = s.norm();
-    face_normal_sums.row(v) = len > 0 ? Eigen::Vector3d(s / len) : Eigen::Vector3d::Zero();
+    face_normal_sums.row(v) = unit_vertex_normal(face_normal_sums.row(v).transpose());
   });
   return face_normal_sums;
 }
 
-/// (S X) row by row: sum_j S_ij (x_j - x_i), for the cotangent stiffness S = C. Computed from
-/// the corners, without a matrix: corner c at i gives 1/2 (cot_r (x_q - x_i) + cot_q (x_r - x_i)).
-inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_geometry& g,
-                                          const Positions& P, bool parallel)
+/// Calls row(i, r) for every vertex i with r = (S X)_i = sum_j S_ij (x_j - x_i), for the
+/// cotangent stiffness S = C, computed from the corners without a matrix: corner c at i gives
+/// 1/2 (cot_r (x_q - x_i) + cot_q (x_r - x_i)).
+template <typename RowSink>
+void for_each_cotangent_laplacian_row(const Mesh_topology& t, const Corner_geometry& g, const Positions& P,
+                                      bool parallel, const RowSink& row)
 {
-  Positions out(t.num_vertices, 3);
   const Index* tri = t.triangles.data();
   const Index n = t.num_vertices;
   // The triangles and cotangents of a vertex's corners are fetched twice as far ahead as the
@@ -372,8 +378,17 @@ inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_g
       const Index c = t.vertex_corners[k], cq = next_corner(c), cr = prev_corner(c);
       s += g.cot[cr] * (P.row(tri[cq]).transpose() - xi) + g.cot[cq] * (P.row(tri[cr]).transpose() - xi);
     }
-    out.row(i) = 0.5 * s;
+    row(i, Eigen::Vector3d(0.5 * s));
   });
+}
+
+/// (S X) row by row (for_each_cotangent_laplacian_row()), as an n x 3 array.
+inline Positions cotangent_laplacian_sums(const Mesh_topology& t, const Corner_geometry& g,
+                                          const Positions& P, bool parallel)
+{
+  Positions out(t.num_vertices, 3);
+  for_each_cotangent_laplacian_row(t, g, P, parallel,
+                                   [&](Index i, const Eigen::Vector3d& r) { out.row(i) = r.transpose(); });
   return out;
 }
 
