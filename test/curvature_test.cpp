@@ -250,29 +250,22 @@ TEST(Curvature, GaussianAndMeanAloneAreBitwiseTheFullComputations)
     for(Vertex_area area : {Vertex_area::barycentric, Vertex_area::mixed}) {
       const auto np = LP::vertex_area(area, LP::laplacian(kind));
       const auto full = lapmesh::vertex_curvatures(m, np);
-      auto K = m.add_property_map<Mesh::Vertex_index, double>("v:K_alone").first;
-      lapmesh::compute_gaussian_curvature(m, K, np);
-      for(auto v : vertices(m)) {
-        const double expected = full.gaussian[v.idx()];
-        if(std::isnan(expected))
-          EXPECT_TRUE(std::isnan(K[v])) << v;
-        else
-          EXPECT_EQ(K[v], expected) << lapmesh::to_string(kind) << " " << lapmesh::to_string(area) << " " << v;
-      }
-      EXPECT_TRUE(std::isnan(K[Mesh::Vertex_index(num_vertices(m) - 1)]));
-      m.remove_property_map(K);
-
-      auto H = m.add_property_map<Mesh::Vertex_index, double>("v:H_alone").first;
-      lapmesh::compute_mean_curvature(m, H, np);
-      for(auto v : vertices(m)) {
-        const double expected = full.mean[v.idx()];
-        if(std::isnan(expected))
-          EXPECT_TRUE(std::isnan(H[v])) << v;
-        else
-          EXPECT_EQ(H[v], expected) << lapmesh::to_string(kind) << " " << lapmesh::to_string(area) << " " << v;
-      }
-      EXPECT_TRUE(std::isnan(H[Mesh::Vertex_index(num_vertices(m) - 1)]));
-      m.remove_property_map(H);
+      // Writes one curvature alone into a fresh map and compares it with the full computation's.
+      const auto expect_alone_equals = [&](const char* what, const Eigen::VectorXd& expected, const auto& compute) {
+        auto map = m.add_property_map<Mesh::Vertex_index, double>("v:alone").first;
+        compute(map);
+        for(auto v : vertices(m)) {
+          if(std::isnan(expected[v.idx()]))
+            EXPECT_TRUE(std::isnan(map[v])) << what << " " << v;
+          else
+            EXPECT_EQ(map[v], expected[v.idx()])
+              << what << " " << lapmesh::to_string(kind) << " " << lapmesh::to_string(area) << " " << v;
+        }
+        EXPECT_TRUE(std::isnan(map[Mesh::Vertex_index(num_vertices(m) - 1)])) << what;
+        m.remove_property_map(map);
+      };
+      expect_alone_equals("K", full.gaussian, [&](auto map) { lapmesh::compute_gaussian_curvature(m, map, np); });
+      expect_alone_equals("H", full.mean, [&](auto map) { lapmesh::compute_mean_curvature(m, map, np); });
     }
 }
 
