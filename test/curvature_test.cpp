@@ -288,19 +288,18 @@ TEST(Curvature, ParallelEqualsSequentialBitwise)
     EXPECT_EQ((lapmesh::vertex_areas<CGAL::Sequential_tag>(m, LP::vertex_area(area)) - a.area).norm(), 0.0);
 
     Mesh copy = m;
+    // The largest difference between a property map of `copy` and the sequential arrays' values.
+    const auto largest_difference = [&](const auto& map, const Eigen::VectorXd& expected) {
+      double largest = 0;
+      for(const auto v : vertices(copy)) largest = std::max(largest, std::abs(map[v] - expected[Eigen::Index(v.idx())]));
+      return largest;
+    };
     auto K = copy.add_property_map<Mesh::Vertex_index, double>("v:K", 0.0).first;
     lapmesh::compute_gaussian_curvature<CGAL::Sequential_tag>(copy, K, LP::vertex_area(area));
-    double largest_difference = 0;
-    for(const auto v : vertices(copy))
-      largest_difference = std::max(largest_difference, std::abs(K[v] - a.gaussian[Eigen::Index(v.idx())]));
-    EXPECT_EQ(largest_difference, 0.0);
-
+    EXPECT_EQ(largest_difference(K, a.gaussian), 0.0);
     auto H = copy.add_property_map<Mesh::Vertex_index, double>("v:H", 0.0).first;
     lapmesh::compute_mean_curvature<CGAL::Parallel_if_available_tag>(copy, H, LP::vertex_area(area));
-    largest_difference = 0;
-    for(const auto v : vertices(copy))
-      largest_difference = std::max(largest_difference, std::abs(H[v] - a.mean[Eigen::Index(v.idx())]));
-    EXPECT_EQ(largest_difference, 0.0);
+    EXPECT_EQ(largest_difference(H, a.mean), 0.0);
   }
 }
 

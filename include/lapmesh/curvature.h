@@ -292,15 +292,15 @@ template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,
 void compute_mean_curvature(const TriangleMesh& tm, VertexCurvatureMap mean_curvature_map,
                             const NamedParameters& np = CGAL::parameters::default_values())
 {
-  auto mesh = internal::extract_for_curvatures<ConcurrencyTag>(tm, np);
+  const auto mesh = internal::extract_for_curvatures<ConcurrencyTag>(tm, np);
   Eigen::VectorXd mean = mesh.naming_input_vertices([&] {
     return internal::compute_mean_curvature_only(mesh.topology, mesh.positions, internal::choose_laplacian(np),
                                                  internal::choose_vertex_area(np),
                                                  internal::is_parallel<ConcurrencyTag>(),
                                                  internal::choose_mollification(np));
   });
-  if(!mesh.rows_are_topology_vertices()) mean = mesh.to_rows(mean, std::numeric_limits<double>::quiet_NaN());
-  internal::write_row_values(mesh.vertex_rows, mean, mean_curvature_map);
+  internal::write_row_values(mesh.vertex_rows, mesh.to_rows(std::move(mean), std::numeric_limits<double>::quiet_NaN()),
+                             mean_curvature_map);
 }
 
 /// @brief writes the angle-deficit Gaussian curvature K into `gaussian_curvature_map`.
@@ -319,13 +319,13 @@ void compute_gaussian_curvature(const TriangleMesh& tm, VertexCurvatureMap gauss
                                              ? internal::Topology_detail::pattern
                                              : internal::Topology_detail::corners,
                                            internal::is_parallel<ConcurrencyTag>());
-  const Eigen::VectorXd K = mesh.naming_input_vertices([&] {
+  Eigen::VectorXd K = mesh.naming_input_vertices([&] {
     return internal::compute_gaussian_curvature_only(mesh.topology, mesh.positions, laplacian,
                                                      internal::choose_vertex_area(np),
                                                      internal::is_parallel<ConcurrencyTag>(),
                                                      internal::choose_mollification(np));
   });
-  internal::write_row_values(mesh.vertex_rows, mesh.to_rows(K, std::numeric_limits<double>::quiet_NaN()),
+  internal::write_row_values(mesh.vertex_rows, mesh.to_rows(std::move(K), std::numeric_limits<double>::quiet_NaN()),
                              gaussian_curvature_map);
 }
 

@@ -37,6 +37,9 @@
 namespace lapmesh {
 namespace internal {
 
+/// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
+constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;
+
 /// Freed mappings of whole pages, each of a known size, reused by size (best fit). Process-wide
 /// and thread-safe. Every function is noexcept: a mapping that cannot be kept is unmapped.
 class Mapping_cache
@@ -61,42 +64,22 @@ public:
     std::size_t best = m_count;
     for(std::size_t i = 0; i < m_count; ++i)
       if(m_entries[i].bytes >= bytes && (best == m_count || m_entries[i].bytes < m_entries[best].bytes)) best = i;
-    if(best == m_count) return nullptr;
-    Entry& e = m_entries[best];
-    void* head = e.address;
-    if(e.bytes == bytes) {
-      erase(best);
-    } else {
-      e.address = static_cast<char*>(e.address) + bytes;
-      e.bytes -= bytes;
-      m_total -= bytes;
-    }
-    return head;
+    return best == m_count ? nullptr : take_head(best, bytes);
   }
 
   /// Moves the cached mappings, oldest first, over the start of [address, address + bytes), a
   /// new mapping of whole huge pages not written yet, until it is full or the cache empty (the
-  /// last one moved may leave its tail cached). Returns the bytes moved. A part the kernel does
-  /// not move (a mapping it has split into areas of other attributes) is unmapped instead: its
-  /// place in the new mapping is faulted in fresh.
-  std::size_t move_into(void* address, std::size_t bytes) noexcept
+  /// last one moved may leave its tail cached). A part the kernel does not move (a mapping it has
+  /// split into areas of other attributes) is unmapped instead: its place in the new mapping is
+  /// faulted in fresh.
+  void move_into(void* address, std::size_t bytes) noexcept
   {
     std::lock_guard<std::mutex> lock(m_mutex);
-    std::size_t moved = 0;
-    while(m_count > 0 && moved < bytes) {
-      Entry& e = m_entries[0];
-      const std::size_t part = std::min(e.bytes, bytes - moved);
-      move_pages(static_cast<char*>(e.address), static_cast<char*>(address) + moved, part);
+    for(std::size_t moved = 0; m_count > 0 && moved < bytes;) {
+      const std::size_t part = std::min(m_entries[0].bytes, bytes - moved);
+      move_pages(static_cast<char*>(take_head(0, part)), static_cast<char*>(address) + moved, part);
       moved += part;
-      if(part == e.bytes) {
-        erase(0);
-      } else {
-        e.address = static_cast<char*>(e.address) + part;
-        e.bytes -= part;
-        m_total -= part;
-      }
     }
-    return moved;
   }
 
   /// Keeps the mapping [address, address + bytes) for a later take(); false (nothing kept) when
@@ -155,6 +138,20 @@ private:
 #endif
     return default_limit * 8;
   }
+  /// The first `bytes` of entry i, taken out of the cache; the rest of it stays cached.
+  void* take_head(std::size_t i, std::size_t bytes) noexcept
+  {
+    Entry& e = m_entries[i];
+    void* head = e.address;
+    if(e.bytes == bytes) {
+      erase(i);
+    } else {
+      e.address = static_cast<char*>(e.address) + bytes;
+      e.bytes -= bytes;
+      m_total -= bytes;
+    }
+    return head;
+  }
   /// Moves the pages of [from, from + bytes) to [to, to + bytes), replacing what lies there.
   /// mremap moves one area of the kernel's at a time: a range that spans several is halved, on
   /// huge page boundaries, until each part lies in one.
@@ -162,9 +159,8 @@ private:
   {
 #if defined(__linux__) && defined(MREMAP_FIXED)
     if(mremap(from, bytes, bytes, MREMAP_MAYMOVE | MREMAP_FIXED, to) != MAP_FAILED) return;
-    constexpr std::size_t page = std::size_t(1) << 21;
-    if(bytes > page) {
-      const std::size_t half = (bytes / 2 + page - 1) / page * page;
+    if(bytes > huge_page_bytes) {
+      const std::size_t half = (bytes / 2 + huge_page_bytes - 1) / huge_page_bytes * huge_page_bytes;
       move_pages(from, to, half);
       move_pages(from + half, to + half, bytes - half);
       return;

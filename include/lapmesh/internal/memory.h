@@ -60,9 +60,6 @@ namespace internal {
 /// glibc's largest mmap threshold: smaller blocks of glibc's are not advised.
 constexpr std::size_t huge_page_advice_min_bytes = std::size_t(32) << 20;
 
-/// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
-constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;
-
 /// `x` rounded down to a whole number of huge pages.
 constexpr std::uintptr_t round_down_to_huge_pages(std::uintptr_t x) noexcept
 {

@@ -38,6 +38,7 @@
 #include <limits>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace CGAL {
@@ -159,6 +160,12 @@ struct Extracted_mesh
     Eigen::VectorXd out = Eigen::VectorXd::Constant(num_rows, fill);
     for(Index i = 0; i < Index(row.size()); ++i) out[row[i]] = values[i];
     return out;
+  }
+  /// As above; values that are already per row are handed on, not copied.
+  Eigen::VectorXd to_rows(Eigen::VectorXd&& values, double fill) const
+  {
+    if(row.empty()) return std::move(values);
+    return to_rows(static_cast<const Eigen::VectorXd&>(values), fill);
   }
   /// Turns a matrix over the topology's vertices into the same one over the rows (zero in
   /// rows in no face), in place. `row` is increasing (a pattern extraction is never renumbered
