@@ -39,8 +39,9 @@ inline double gaussian_curvature_at(const Mesh_topology& t, Index v, double angl
   return ((t.on_boundary[v] ? M_PI : 2.0 * M_PI) - angle_sum) / area;
 }
 
-/// K from the angle sums and the areas in `out`, then k1, k2 from K and the mean curvature.
-inline void set_gaussian_and_principal(const Mesh_topology& t, const Eigen::VectorXd& angle_sum, bool parallel,
+/// K from the angle sums (one per vertex) and the areas in `out`, then k1, k2 from K and the
+/// mean curvature.
+inline void set_gaussian_and_principal(const Mesh_topology& t, const double* angle_sum, bool parallel,
                                        Vertex_curvatures& out)
 {
   const Index n = t.num_vertices;
@@ -88,7 +89,7 @@ inline Vertex_curvatures compute_intrinsic_curvatures(const Mesh_topology& t, co
     out.mean[v] = 0.5 * Lx.norm() * mean_curvature_sign(Lx, nv);
   });
   if(!with_gaussian) return out;
-  set_gaussian_and_principal(t, vertex_angle_sums(it), parallel, out);
+  set_gaussian_and_principal(t, vertex_angle_sums(it).data(), parallel, out);
   return out;
 }
 
@@ -114,7 +115,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
 
   Vertex_curvatures out;
   out.area = std::move(g.vertex_area);
-  out.normal = vertex_normals(std::move(g.face_normal_sum), parallel);
+  out.normal = vertex_normals(g, parallel);
   if(laplacian == Laplacian::cotangent || with_gaussian) require_positive_vertex_areas(out.area, area);
 
   if(laplacian == Laplacian::cotangent) {
@@ -133,7 +134,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
   });
   if(!with_gaussian) return out;
 
-  set_gaussian_and_principal(t, g.angle_sum, parallel, out);
+  set_gaussian_and_principal(t, g.angle_sum.data(), parallel, out);
   return out;
 }
 
@@ -151,7 +152,7 @@ inline Eigen::VectorXd compute_mean_curvature_only(const Mesh_topology& t, const
   Eigen::VectorXd mean(t.num_vertices);
   for_each_cotangent_laplacian_row(t, g, P, parallel, [&](Index v, const Eigen::Vector3d& row) {
     const Eigen::Vector3d Lx = row / g.vertex_area[v];
-    const Eigen::Vector3d nv = unit_vertex_normal(g.face_normal_sum.row(v).transpose());
+    const Eigen::Vector3d nv = unit_vertex_normal(g.face_normal_sum_of(v));
     mean[v] = 0.5 * Lx.norm() * mean_curvature_sign(Lx, nv);
   });
   return mean;

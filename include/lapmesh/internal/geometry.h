@@ -87,9 +87,18 @@ struct Corner_geometry
   /// uninitialised, which saves a zeroing pass that the face pass overwrites anyway.
   Working_array<double> cot;
   Eigen::VectorXd vertex_area;  ///< A_i, the sum of the shares of i's corners
-  Eigen::VectorXd angle_sum;    ///< the sum of i's corner angles (want_angles)
-  Positions face_normal_sum;    ///< the sum of the cross products (2 * area * unit normal) of
-                                ///< i's faces (want_face_normals)
+  /// The sum of i's corner angles (want_angles). This sum and the next never leave a call as
+  /// they are, so they live in working arrays, whose pages the next call finds mapped.
+  Working_array<double> angle_sum;
+  /// The sum of the cross products (2 * area * unit normal) of i's faces, three values per
+  /// vertex (want_face_normals).
+  Working_array<double> face_normal_sum;
+
+  /// face_normal_sum of vertex i.
+  Eigen::Map<const Eigen::Vector3d> face_normal_sum_of(Index i) const
+  {
+    return Eigen::Map<const Eigen::Vector3d>(&face_normal_sum[3 * std::size_t(i)]);
+  }
 };
 
 struct Corner_request
@@ -105,21 +114,33 @@ struct Corner_request
 /// held; in parallel the values are kept per corner and each vertex gathers its own (no two
 /// threads write one sum). Both add a vertex's values in ascending corner order, the order of
 /// its corner list (sort_corners_by_vertex()), so the sums are the same, bitwise. `PerFace`: one
-/// value per face, added to each of its three vertices.
-template <bool Scatter, int Width, bool PerFace = false>
+/// value per face, added to each of its three vertices. `Sums`: an Eigen array for sums that
+/// leave the call in a result, or a Working_array<double> (Width values per vertex) for those
+/// that do not.
+template <bool Scatter, int Width, bool PerFace = false,
+          typename Sums = std::conditional_t<Width == 1, Eigen::VectorXd, Positions>>
 class Corner_value_sums
 {
-public:
-  using Sums = std::conditional_t<Width == 1, Eigen::VectorXd, Positions>;
+  static constexpr bool in_working_array = std::is_same<Sums, Working_array<double>>::value;
 
+  /// Sums for `vertices` vertices, not initialised.
+  static Sums sized_for(Index vertices)
+  {
+    if constexpr(in_working_array)
+      return Sums(std::size_t(Width) * std::size_t(vertices));
+    else
+      return Sums(vertices, Width);
+  }
+
+public:
   /// `wanted` false: nothing is allocated and add_face() must not be called.
   explicit Corner_value_sums(const Mesh_topology& t, bool wanted = true) : m_tri(t.triangles.data())
   {
     if(!wanted) return;
     if constexpr(Scatter) {
-      m_sums.resize(t.num_vertices, Width);
-      prepare_for_writing(m_sums);
-      m_sums.setZero();
+      m_sums = sized_for(t.num_vertices);
+      if constexpr(!in_working_array) prepare_for_writing(m_sums);
+      std::fill_n(m_sums.data(), std::size_t(Width) * std::size_t(t.num_vertices), 0.0);
       m_out = m_sums.data();
     } else {
       m_values.resize(std::size_t(Width) * (PerFace ? 1 : 3) * std::size_t(t.num_faces));
@@ -153,8 +174,8 @@ public:
     if constexpr(Scatter) {
       return std::move(m_sums);
     } else {
-      Sums out(t.num_vertices, Width);
-      prepare_for_writing(out, parallel);
+      Sums out = sized_for(t.num_vertices);
+      if constexpr(!in_working_array) prepare_for_writing(out, parallel);
       for_each_index(t.num_vertices, parallel, [&](Index v) {
         double s[Width] = {};
         for(Index k = t.corner_begin[v]; k < t.corner_begin[v + 1]; ++k) {
@@ -277,8 +298,9 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
 
   with_corner_sums_for(parallel, [&](auto scatter) {
     constexpr bool Scatter = decltype(scatter)::value;
-    Corner_value_sums<Scatter, 1> area_sums(t), angle_sums(t, request.want_angles);
-    Corner_value_sums<Scatter, 3, true> normal_sums(t, request.want_face_normals);
+    Corner_value_sums<Scatter, 1> area_sums(t);
+    Corner_value_sums<Scatter, 1, false, Working_array<double>> angle_sums(t, request.want_angles);
+    Corner_value_sums<Scatter, 3, true, Working_array<double>> normal_sums(t, request.want_face_normals);
     First_index<Index> first_degenerate;
     for_each_index(m, parallel, [&](Index f) {
       if(f + prefetch_distance < m) {
@@ -346,6 +368,16 @@ inline Positions vertex_normals(Positions face_normal_sums, bool parallel)
     face_normal_sums.row(v) = unit_vertex_normal(face_normal_sums.row(v).transpose());
   });
   return face_normal_sums;
+}
+
+/// The same normals from Corner_geometry::face_normal_sum, into a new array.
+inline Positions vertex_normals(const Corner_geometry& g, bool parallel)
+{
+  Positions normals(Index(g.face_normal_sum.size() / 3), 3);
+  prepare_for_writing(normals, parallel);
+  for_each_index(Index(normals.rows()), parallel,
+                 [&](Index v) { normals.row(v) = unit_vertex_normal(g.face_normal_sum_of(v)).transpose(); });
+  return normals;
 }
 
 /// Calls row(i, r) for every vertex i with r = (S X)_i = sum_j S_ij (x_j - x_i), for the
