@@ -115,7 +115,7 @@ inline Vertex_curvatures compute_curvatures(const Mesh_topology& t, const Positi
 
   Vertex_curvatures out;
   out.area = std::move(g.vertex_area);
-  out.normal = vertex_normals(g, parallel);
+  out.normal = vertex_normals(g.face_normal_sum, parallel);
   if(laplacian == Laplacian::cotangent || with_gaussian) require_positive_vertex_areas(out.area, area);
 
   if(laplacian == Laplacian::cotangent) {

@@ -80,7 +80,7 @@ inline double noise_sigma(const Mesh_topology& t, const Positions& P, double lev
 /// in place) instead of refusing the mesh; a face out of the representable range is refused.
 inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
 {
-  Positions sums = Positions::Zero(t.num_vertices, 3);
+  Working_array<double> sums(3 * std::size_t(t.num_vertices), 0.0);
   Eigen::Vector3d cross;
   for(Index f = 0; f < t.num_faces; ++f) {
     if(!face_cross_in_range(t, P, f, cross)) {
@@ -88,9 +88,10 @@ inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
       if(d == Face_defect::zero_area) continue;
       throw_face_defect(f, d);
     }
-    for(Index a = 0; a < 3; ++a) sums.row(t.triangles[3 * f + a]) += cross.transpose();
+    for(Index a = 0; a < 3; ++a)
+      Eigen::Map<Eigen::Vector3d>(&sums[3 * std::size_t(t.triangles[3 * f + a])]) += cross;
   }
-  return vertex_normals(std::move(sums), false);
+  return vertex_normals(sums, false);
 }
 
 /// Adds noise to P in place; returns sigma.

@@ -80,6 +80,12 @@ inline std::uint64_t morton_code(const Point3& p, const Box3& box)
   return code;
 }
 
+/// The i-th of the vectors held three values each, side by side, in `values`.
+inline Eigen::Map<const Eigen::Vector3d> vector3_at(const Working_array<double>& values, Index i)
+{
+  return Eigen::Map<const Eigen::Vector3d>(&values[3 * std::size_t(i)]);
+}
+
 /// The corner cotangents of a mesh and the per-vertex sums of its corners' geometry.
 struct Corner_geometry
 {
@@ -95,10 +101,7 @@ struct Corner_geometry
   Working_array<double> face_normal_sum;
 
   /// face_normal_sum of vertex i.
-  Eigen::Map<const Eigen::Vector3d> face_normal_sum_of(Index i) const
-  {
-    return Eigen::Map<const Eigen::Vector3d>(&face_normal_sum[3 * std::size_t(i)]);
-  }
+  Eigen::Map<const Eigen::Vector3d> face_normal_sum_of(Index i) const { return vector3_at(face_normal_sum, i); }
 };
 
 struct Corner_request
@@ -360,23 +363,15 @@ inline Eigen::Vector3d unit_vertex_normal(const Eigen::Vector3d& face_normal_sum
   return len > 0 ? Eigen::Vector3d(face_normal_sum / len) : Eigen::Vector3d::Zero();
 }
 
-/// Area-weighted unit vertex normals from the sums of the incident face cross products
-/// (Corner_geometry::face_normal_sum), normalised in place.
-inline Positions vertex_normals(Positions face_normal_sums, bool parallel)
+/// Area-weighted unit vertex normals from the sums of the incident face cross products, three
+/// values per vertex (Corner_geometry::face_normal_sum).
+inline Positions vertex_normals(const Working_array<double>& face_normal_sums, bool parallel)
 {
-  for_each_index(Index(face_normal_sums.rows()), parallel, [&](Index v) {
-    face_normal_sums.row(v) = unit_vertex_normal(face_normal_sums.row(v).transpose());
-  });
-  return face_normal_sums;
-}
-
-/// The same normals from Corner_geometry::face_normal_sum, into a new array.
-inline Positions vertex_normals(const Corner_geometry& g, bool parallel)
-{
-  Positions normals(Index(g.face_normal_sum.size() / 3), 3);
+  Positions normals(Index(face_normal_sums.size() / 3), 3);
   prepare_for_writing(normals, parallel);
-  for_each_index(Index(normals.rows()), parallel,
-                 [&](Index v) { normals.row(v) = unit_vertex_normal(g.face_normal_sum_of(v)).transpose(); });
+  for_each_index(Index(normals.rows()), parallel, [&](Index v) {
+    normals.row(v) = unit_vertex_normal(vector3_at(face_normal_sums, v)).transpose();
+  });
   return normals;
 }
 
