@@ -1063,12 +1063,21 @@ TEST(Operators, LargeWorkingArraysLieInMappingsOfTheirOwnInWholeHugePages)
     part = next;
   }
 
-  // Below the threshold: operator new, with no advice.
-  Working_array<int> small(std::size_t(1) << 16);
+  // Under 4 MiB: a mapping of its own in small pages, not advised huge.
+  Working_array<int> small(std::size_t(1) << 18);
   std::iota(small.begin(), small.end(), 0);
   EXPECT_LT(sizeof(int) * small.capacity(), lapmesh::internal::huge_page_mapping_min_bytes);
-  EXPECT_EQ(small.back(), (1 << 16) - 1);
-  EXPECT_EQ(mapping_of(small.data()).flags.find(" hg"), std::string::npos);
+  EXPECT_GE(sizeof(int) * small.capacity(), lapmesh::internal::small_mapping_min_bytes);
+  EXPECT_EQ(small.back(), (1 << 18) - 1);
+  const Mapping small_mapping = mapping_of(small.data());
+  EXPECT_EQ(small_mapping.begin, reinterpret_cast<std::uintptr_t>(small.data()));
+  EXPECT_EQ(small_mapping.flags.find(" hg"), std::string::npos);
+  // Under 256 KiB: operator new, with no advice.
+  Working_array<int> tiny(std::size_t(1) << 12);
+  std::iota(tiny.begin(), tiny.end(), 0);
+  EXPECT_LT(sizeof(int) * tiny.capacity(), lapmesh::internal::small_mapping_min_bytes);
+  EXPECT_EQ(tiny.back(), (1 << 12) - 1);
+  EXPECT_EQ(mapping_of(tiny.data()).flags.find(" hg"), std::string::npos);
 
   // Freed with the cache off: the mapping is gone (unless another one has taken the address since).
   const std::size_t limit = lapmesh::working_memory_cache_limit();
@@ -1157,8 +1166,8 @@ TEST(Operators, FreedWorkingArraysAreKeptForTheNextCallWithinTheLimitAndUsedBefo
   EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
   lapmesh::set_working_memory_cache_limit(limit);
 
-  // Below 4 MiB an array comes from operator new and is never cached.
-  { Working_array<double> heap((std::size_t(2) << 20) / sizeof(double)); }
+  // Below 256 KiB an array comes from operator new and is never cached.
+  { Working_array<double> heap((std::size_t(128) << 10) / sizeof(double)); }
   EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
 
   // release_to_system() empties an array and hands its mapping back instead of caching it; the
@@ -1173,10 +1182,65 @@ TEST(Operators, FreedWorkingArraysAreKeptForTheNextCallWithinTheLimitAndUsedBefo
   lapmesh::release_working_memory();
 }
 
+TEST(Operators, WorkingArraysUnder4MiBAreKeptForTheNextArrayOfTheirExactSize)
+{
+  using lapmesh::internal::Working_array;
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  const std::size_t limit = lapmesh::working_memory_cache_limit();
+  lapmesh::release_working_memory();
+  const std::size_t kib = 1024 / sizeof(double);
+
+  // Freed, a 1 MiB array's mapping is kept in whole pages and serves the next array of its size,
+  // values and all; an array of another size, larger or smaller, does not take it.
+  auto* first = new Working_array<double>(1024 * kib);
+  std::fill(first->begin(), first->end(), 4.5);
+  const double* address = first->data();
+  delete first;
+  EXPECT_EQ(lapmesh::cached_working_memory(), std::size_t(1) << 20);
+  {
+    Working_array<double> smaller(512 * kib), larger(2048 * kib);
+    EXPECT_NE(smaller.data(), address);
+    EXPECT_NE(larger.data(), address);
+    EXPECT_EQ(lapmesh::cached_working_memory(), std::size_t(1) << 20);
+  }
+  const std::size_t half_mib = std::size_t(1) << 19;
+  EXPECT_EQ(lapmesh::cached_working_memory(), 7 * half_mib);  // oldest first: 1, 2 and 0.5 MiB
+  Working_array<double> again(1024 * kib - 1);  // the same whole pages
+  EXPECT_EQ(again.data(), address);
+  EXPECT_EQ(again[100 * kib], 4.5);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 5 * half_mib);
+
+  // release_to_system() keeps it all the same: handed back, it would be faulted in afresh at the
+  // next call, for little memory.
+  lapmesh::internal::release_to_system(again);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 7 * half_mib);  // 2, 0.5 and 1 MiB
+
+  // The small arrays take a sixteenth of the limit: over it, the oldest go first.
+  lapmesh::set_working_memory_cache_limit(std::size_t(32) << 20);  // 2 MiB for the small arrays
+  EXPECT_EQ(lapmesh::working_memory_cache_limit(), std::size_t(32) << 20);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 3 * half_mib);  // the 2 MiB one went
+  { Working_array<double> other(1536 * kib); }
+  EXPECT_EQ(lapmesh::cached_working_memory(), 3 * half_mib);  // the new one alone
+  Working_array<double> reuse(1536 * kib);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  { Working_array<double> too_large(3072 * kib); }
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  lapmesh::set_working_memory_cache_limit(0);
+  Working_array<double>().swap(reuse);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  lapmesh::set_working_memory_cache_limit(limit);
+  EXPECT_EQ(lapmesh::working_memory_cache_limit(), limit);
+
+  // release_working_memory() hands both caches back and says how much.
+  { Working_array<double> small(1024 * kib), large(1024 * 1024 * kib / 128); }  // 1 MiB and 8 MiB
+  EXPECT_EQ(lapmesh::release_working_memory(), std::size_t(9) << 20);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+}
+
 // laplacian_pencil() hands the positions, the triangles and the corner lists back before it
 // allocates the matrix: with the cache emptied first, what it leaves cached afterwards is the
 // rest of the topology (the pattern and its corner slots) and the cotangents, not the arrays of
-// one entry per corner or per face vertex.
+// one entry per corner or per face vertex. (Arrays under 4 MiB are kept all the same, apart.)
 TEST(Operators, ThePencilHandsBackTheGeometryInputsBeforeItAllocatesTheMatrix)
 {
   ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
@@ -1187,10 +1251,10 @@ TEST(Operators, ThePencilHandsBackTheGeometryInputsBeforeItAllocatesTheMatrix)
   const auto pencil = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
   ASSERT_EQ(std::size_t(pencil.stiffness.nonZeros()), nonzeros);
   // slot_corners (two corners per slot), inner (one index per slot), the cotangents (one per
-  // corner); the outer indices and the diagonal slots are under 4 MiB.
+  // corner); the outer indices and the diagonal slots are under 4 MiB, in the other cache.
   const std::size_t expected = whole_huge_pages(nonzeros * 2 * sizeof(int)) +
                                whole_huge_pages(nonzeros * sizeof(int)) + whole_huge_pages(corners * sizeof(double));
-  EXPECT_EQ(lapmesh::cached_working_memory(), expected);
+  EXPECT_EQ(lapmesh::internal::Mapping_cache::large_arrays().cached_bytes(), expected);
   lapmesh::release_working_memory();
 }
 #endif

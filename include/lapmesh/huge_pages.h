@@ -5,11 +5,12 @@
 // itself with glibc's huge-page tunable for large inputs. `LAPMESH_HUGE_PAGES=0` in the
 // environment turns both off.
 //
-// lapmesh's own working arrays of 4 MiB or more (a mesh of about 100k vertices and up) are
-// mappings of their own. When a call frees them, lapmesh keeps them, up to a limit, for the next
-// call, which then finds its arrays warm instead of faulted in and zeroed by the kernel page by
-// page (internal/mapping_cache.h). A program that is done with large meshes, or keeps memory
-// tight, hands them back with release_working_memory() or lowers the limit.
+// lapmesh's own working arrays of 256 KiB or more (on meshes of some thousands of vertices and
+// up) are mappings of their own, in huge pages from 4 MiB on. When a call frees them, lapmesh
+// keeps them, up to a limit, for the next call, which then finds its arrays warm instead of
+// faulted in and zeroed by the kernel page by page (internal/mapping_cache.h). A program that is
+// done with large meshes, or keeps memory tight, hands them back with release_working_memory() or
+// lowers the limit. `LAPMESH_HUGE_PAGES=0` also keeps the working arrays in the C++ heap.
 #ifndef LAPMESH_HUGE_PAGES_H
 #define LAPMESH_HUGE_PAGES_H
 
@@ -36,17 +37,26 @@ inline bool huge_pages_enabled()
 }
 
 /// Bytes of freed working memory that lapmesh keeps mapped for its next calls.
-inline std::size_t cached_working_memory() { return internal::Mapping_cache::instance().cached_bytes(); }
+inline std::size_t cached_working_memory()
+{
+  return internal::Mapping_cache::large_arrays().cached_bytes() + internal::Mapping_cache::small_arrays().cached_bytes();
+}
 
 /// Hands the cached working memory back to the system; returns how many bytes that was.
-inline std::size_t release_working_memory() { return internal::Mapping_cache::instance().release(); }
+inline std::size_t release_working_memory()
+{
+  return internal::Mapping_cache::large_arrays().release() + internal::Mapping_cache::small_arrays().release();
+}
 
 /// The most bytes of freed working memory that lapmesh keeps: 1 GiB, or an eighth of the
-/// physical memory where that is less, unless set.
-inline std::size_t working_memory_cache_limit() { return internal::Mapping_cache::instance().limit(); }
+/// physical memory where that is less, unless set. Arrays under 4 MiB take at most a sixteenth.
+inline std::size_t working_memory_cache_limit()
+{
+  return internal::Mapping_cache::large_arrays().limit() + internal::Mapping_cache::small_arrays().limit();
+}
 
 /// Sets that limit; 0 keeps nothing. What the cache holds over the new limit is handed back.
-inline void set_working_memory_cache_limit(std::size_t bytes) { internal::Mapping_cache::instance().set_limit(bytes); }
+inline void set_working_memory_cache_limit(std::size_t bytes) { internal::Mapping_cache::set_total_limit(bytes); }
 
 } // namespace lapmesh
 

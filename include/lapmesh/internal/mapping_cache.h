@@ -1,4 +1,4 @@
-// Internal: the mappings of lapmesh's large working arrays, kept for the next call.
+// Internal: the mappings of lapmesh's working arrays, kept for the next call.
 //
 // Why: a call on a large mesh maps its working arrays (the topology, the extracted triangles,
 // the corner geometry) apart from glibc's heap, on whole huge pages (internal/memory.h). Unmapped
@@ -15,12 +15,20 @@
 // large ones after), so with whole mappings only, the small arrays would take the large mappings
 // apart and the large arrays find nothing left that fits.
 //
-// The bounds: the cache holds at most working_memory_cache_limit() bytes (1 GiB, or an eighth of
-// the physical memory where that is less; set_working_memory_cache_limit() changes it, 0 turns
-// the cache off) in at most max_entries mappings, and no fresh page is faulted in while a cached
-// one is left: lapmesh's own arrays never need more memory than they would without the cache. A
-// computation about to allocate much memory of another kind (a sparse factorisation) empties it
-// (release_working_memory()).
+// Arrays under 4 MiB (from 256 KiB on) have a cache of their own, in small pages, where a mapping
+// serves only an array of exactly its size: otherwise glibc's heap holds them, and where other
+// code's frees have taken the heap past its trim threshold, they are faulted in afresh at every
+// call. Carved by a smaller array, as the large mappings are, such a mapping would no longer hold
+// the array it came from at the next call, which would then map fresh pages; among arrays of one
+// mesh the same sizes come back at every call.
+//
+// The bounds: the two caches hold at most working_memory_cache_limit() bytes together (1 GiB, or
+// an eighth of the physical memory where that is less, a sixteenth of it for the small arrays;
+// set_working_memory_cache_limit() changes it, 0 turns the caches off), each in at most
+// max_entries mappings, and no fresh page is faulted in while a cached large one is left:
+// lapmesh's own arrays never need more memory than they would without the caches. A computation
+// about to allocate much memory of another kind (a sparse factorisation) hands the large mappings
+// back (release_cached_large_arrays()); the small ones stay, as freed blocks in glibc's heap would.
 #ifndef LAPMESH_INTERNAL_MAPPING_CACHE_H
 #define LAPMESH_INTERNAL_MAPPING_CACHE_H
 
@@ -40,30 +48,52 @@ namespace internal {
 /// The size of a transparent huge page on x86-64 and arm64 with 4 KiB base pages.
 constexpr std::size_t huge_page_bytes = std::size_t(1) << 21;
 
-/// Freed mappings of whole pages, each of a known size, reused by size (best fit). Process-wide
-/// and thread-safe. Every function is noexcept: a mapping that cannot be kept is unmapped.
+/// Freed mappings of whole pages, each of a known size, reused by size (best fit, or exact
+/// sizes only). Process-wide and thread-safe. Every function is noexcept: a mapping that cannot
+/// be kept is unmapped.
 class Mapping_cache
 {
 public:
   static constexpr std::size_t max_entries = 64;
   static constexpr std::size_t default_limit = std::size_t(1) << 30;
+  /// The small arrays' share of a limit.
+  static constexpr std::size_t small_arrays_share = 16;
 
-  /// The process's cache. Never destroyed: arrays in static storage may be freed after it would be.
-  static Mapping_cache& instance() noexcept
+  /// The process's cache of the mappings of large arrays, in huge pages (best fit, carved). Never
+  /// destroyed: arrays in static storage may be freed after it would be.
+  static Mapping_cache& large_arrays() noexcept
   {
     alignas(Mapping_cache) static unsigned char storage[sizeof(Mapping_cache)];
-    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache();
+    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache(false);
+    return *cache;
+  }
+  /// The process's cache of the mappings of small arrays, in small pages (exact sizes).
+  static Mapping_cache& small_arrays() noexcept
+  {
+    alignas(Mapping_cache) static unsigned char storage[sizeof(Mapping_cache)];
+    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache(true);
     return *cache;
   }
 
-  /// The head of the smallest cached mapping of at least `bytes` bytes (whole pages), its tail
-  /// kept in the cache; nullptr where none is that large.
+  /// Both caches' limit together: the small arrays' share, and the rest for the large ones.
+  static std::size_t default_total_limit() noexcept { return std::min(default_limit, physical_memory() / 8); }
+  static void set_total_limit(std::size_t bytes) noexcept
+  {
+    small_arrays().set_limit(bytes / small_arrays_share);
+    large_arrays().set_limit(bytes - bytes / small_arrays_share);
+  }
+
+  /// A cached mapping of `bytes` bytes (whole pages): the head of the smallest one that holds
+  /// them, its tail kept in the cache, or with exact sizes one of exactly that size; nullptr where
+  /// none is.
   void* take(std::size_t bytes) noexcept
   {
     std::lock_guard<std::mutex> lock(m_mutex);
     std::size_t best = m_count;
-    for(std::size_t i = 0; i < m_count; ++i)
-      if(m_entries[i].bytes >= bytes && (best == m_count || m_entries[i].bytes < m_entries[best].bytes)) best = i;
+    for(std::size_t i = 0; i < m_count; ++i) {
+      const std::size_t size = m_entries[i].bytes;
+      if(m_exact_sizes ? size == bytes : size >= bytes && (best == m_count || size < m_entries[best].bytes)) best = i;
+    }
     return best == m_count ? nullptr : take_head(best, bytes);
   }
 
@@ -71,9 +101,10 @@ public:
   /// new mapping of whole huge pages not written yet, until it is full or the cache empty (the
   /// last one moved may leave its tail cached). A part the kernel does not move (a mapping it has
   /// split into areas of other attributes) is unmapped instead: its place in the new mapping is
-  /// faulted in fresh.
+  /// faulted in fresh. Not with exact sizes, whose mappings are never carved.
   void move_into(void* address, std::size_t bytes) noexcept
   {
+    if(m_exact_sizes) return;
     std::lock_guard<std::mutex> lock(m_mutex);
     for(std::size_t moved = 0; m_count > 0 && moved < bytes;) {
       const std::size_t part = std::min(m_entries[0].bytes, bytes - moved);
@@ -128,7 +159,11 @@ private:
     std::size_t bytes;
   };
 
-  Mapping_cache() noexcept : m_limit(std::min(default_limit, physical_memory() / 8)) {}
+  explicit Mapping_cache(bool exact_sizes) noexcept
+    : m_exact_sizes(exact_sizes),
+      m_limit(exact_sizes ? default_total_limit() / small_arrays_share
+                          : default_total_limit() - default_total_limit() / small_arrays_share)
+  {}
 
   static std::size_t physical_memory() noexcept
   {
@@ -198,6 +233,7 @@ private:
     --m_count;
   }
 
+  const bool m_exact_sizes;
   mutable std::mutex m_mutex;
   Entry m_entries[max_entries] = {};
   std::size_t m_count = 0, m_total = 0, m_limit;

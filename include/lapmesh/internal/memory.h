@@ -11,14 +11,17 @@
 // extracted triangles, the corner geometry) of at least 4 MiB get mappings of their own, on 2 MiB
 // boundaries and advised whole (allocate_large()): together they would take the heap past its
 // trim threshold. Freed, such a mapping is kept for the next call's arrays (mapping_cache.h),
-// which find its pages warm, as glibc's heap would have kept them below its trim threshold. Where a fault is a trip
-// to the hypervisor, a burst of 4 KiB faults also slows the next pass over other memory (the
-// caller's mesh), likely because its mappings fall out of the hypervisor's caches. The blocks of
-// Eigen's arrays come from glibc: only those of at least 32 MiB, which glibc maps apart, are
-// advised, on the whole 2 MiB pages inside them, so memory outside a block is never affected;
-// advising smaller ones, inside glibc's heap, measured slower on the project's 2-core test
-// machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the environment turns both off
-// (read once per process).
+// which find its pages warm, as glibc's heap would have kept them below its trim threshold. The
+// working arrays from 256 KiB to 4 MiB are mappings of their own as well, in small pages, kept for
+// the next array of their size: in glibc's heap, other code's frees (the caller's) may take it past
+// its trim threshold between two calls, and the next call's blocks would be faulted in afresh.
+// Where a fault is a trip to the hypervisor, a burst of 4 KiB faults also slows the next pass over
+// other memory (the caller's mesh), likely because its mappings fall out of the hypervisor's
+// caches. The blocks of Eigen's arrays come from glibc: only those of at least 32 MiB, which glibc
+// maps apart, are advised, on the whole 2 MiB pages inside them, so memory outside a block is
+// never affected; advising smaller ones, inside glibc's heap, measured slower on the project's
+// 2-core test machine (doc/benchmarks-history.md). `LAPMESH_HUGE_PAGES=0` in the environment
+// turns both off, and the working arrays' mappings with them (read once per process).
 //
 // Why populating: where no huge page is to be had (transparent huge pages off, or physical
 // memory too fragmented for 2 MiB pages), an Eigen result of at least 32 MiB that is written whole
@@ -95,28 +98,60 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) noexcept
 /// 2 MiB boundary, leaving their first and last 2 MiB in small pages.
 constexpr std::size_t huge_page_mapping_min_bytes = std::size_t(4) << 20;
 
-/// Whether allocate_large() maps a block of `bytes` apart (a function of the size alone, so that
-/// deallocate_large() takes the same branch).
-inline bool maps_apart(std::size_t bytes) noexcept
+/// Working arrays of at least this size, and under huge_page_mapping_min_bytes, are mapped apart
+/// in small pages: smaller ones take few faults in glibc's heap, and would crowd the cache.
+constexpr std::size_t small_mapping_min_bytes = std::size_t(256) << 10;
+
+/// Where allocate_large() puts a block (a function of the size alone, so that deallocate_large()
+/// takes the same branch).
+enum class Block_place
+{
+  heap,               ///< operator new
+  small_page_mapping, ///< a mapping of its own in small pages, cached by its exact size
+  huge_page_mapping   ///< a mapping of its own in huge pages, cached by best fit
+};
+
+inline Block_place block_place(std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  return bytes >= huge_page_mapping_min_bytes && huge_pages_enabled();
+  if(!huge_pages_enabled() || bytes < small_mapping_min_bytes) return Block_place::heap;
+  return bytes < huge_page_mapping_min_bytes ? Block_place::small_page_mapping : Block_place::huge_page_mapping;
 #else
   (void)bytes;
-  return false;
+  return Block_place::heap;
 #endif
 }
 
-/// `bytes` of memory, not initialised: when maps_apart(bytes), a block of whole 2 MiB
-/// pages advised huge (a cached one that holds it, else a new mapping that takes over the cached
-/// pages first, mapping_cache.h), else from operator new. Throws std::bad_alloc.
+/// `bytes` rounded up to whole pages of the system's.
+inline std::size_t round_up_to_pages(std::size_t bytes) noexcept
+{
+#if defined(__linux__)
+  static const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096);
+#else
+  const std::size_t page = 4096;
+#endif
+  return (bytes + page - 1) / page * page;
+}
+
+/// `bytes` of memory, not initialised: a block of whole 2 MiB pages advised huge (a cached one that
+/// holds it, else a new mapping that takes over the cached pages first, mapping_cache.h), a block of
+/// whole small pages (a cached one of its size, else a new mapping), or one from operator new, as
+/// block_place() says. Throws std::bad_alloc.
 inline void* allocate_large(std::size_t bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes)) {
+  const Block_place place = block_place(bytes);
+  if(place == Block_place::small_page_mapping) {
+    const std::size_t size = round_up_to_pages(bytes);
+    if(void* cached = Mapping_cache::small_arrays().take(size)) return cached;
+    void* mapped = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if(mapped == MAP_FAILED) throw std::bad_alloc();
+    return mapped;
+  }
+  if(place == Block_place::huge_page_mapping) {
     const std::size_t size = round_up_to_huge_pages(bytes);
     if(size < bytes) throw std::bad_alloc();
-    Mapping_cache& cache = Mapping_cache::instance();
+    Mapping_cache& cache = Mapping_cache::large_arrays();
     if(void* cached = cache.take(size)) return cached;
     // Map one huge page more and unmap what lies outside the first aligned block.
     void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
@@ -140,13 +175,21 @@ inline bool& bypassing_mapping_cache() noexcept
   return bypassing;
 }
 
-/// Frees a block of allocate_large(bytes); a mapping goes to the cache where it fits.
+/// Frees a block of allocate_large(bytes); a mapping goes to its cache where it fits. A small
+/// array's mapping is kept even while bypassing_mapping_cache(): handed back, it would be mapped
+/// and faulted in afresh at the next call, for little memory.
 inline void deallocate_large(void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  if(maps_apart(bytes)) {
+  const Block_place place = block_place(bytes);
+  if(place == Block_place::small_page_mapping) {
+    const std::size_t size = round_up_to_pages(bytes);
+    if(!Mapping_cache::small_arrays().keep(p, size)) munmap(p, size);
+    return;
+  }
+  if(place == Block_place::huge_page_mapping) {
     const std::size_t size = round_up_to_huge_pages(bytes);
-    if(bypassing_mapping_cache() || !Mapping_cache::instance().keep(p, size)) munmap(p, size);
+    if(bypassing_mapping_cache() || !Mapping_cache::large_arrays().keep(p, size)) munmap(p, size);
     return;
   }
 #endif
@@ -154,8 +197,7 @@ inline void deallocate_large(void* p, std::size_t bytes) noexcept
 }
 
 /// std::allocator whose resize() leaves integers unset instead of zeroing them, and whose blocks
-/// of at least huge_page_mapping_min_bytes are mappings of their own in huge pages
-/// (allocate_large()).
+/// of at least small_mapping_min_bytes are mappings of their own (allocate_large()).
 /// lapmesh's own large arrays are written in full right after they are sized, in parallel under
 /// CGAL::Parallel_tag: zeroing them first would be a serial pass that also takes the page faults
 /// of every fresh page on one thread.
@@ -191,13 +233,21 @@ struct Working_array_allocator : std::allocator<T>
 
 /// A working array of a call (the topology's arrays, the extracted triangles and vertices, the
 /// corner geometry): a std::vector that resize() does not zero, in a cached mapping of its own
-/// from 4 MiB on, in glibc's heap below.
+/// from 256 KiB on (in huge pages from 4 MiB), in glibc's heap below.
 template <typename T>
 using Working_array = std::vector<T, Working_array_allocator<T>>;
 
+/// Hands the cached mappings of large arrays back to the system, before a computation that
+/// allocates much memory of another kind (a sparse factorisation), which they would otherwise
+/// lie beside at its peak. Those of small arrays stay cached, as glibc's heap keeps its freed
+/// blocks: an implicit step that refactorises at every iteration would otherwise fault the small
+/// arrays of each iteration's assembly in afresh.
+inline void release_cached_large_arrays() noexcept { Mapping_cache::large_arrays().release(); }
+
 /// Empties `array` and hands its memory back to the system, not to the cache of mappings: for
 /// memory that allocations outside working arrays (a result's Eigen matrix) are about to need,
-/// and which the cache could not give them.
+/// and which the cache could not give them. A mapping under 4 MiB is cached all the same (see
+/// deallocate_large()).
 template <typename T>
 void release_to_system(Working_array<T>& array) noexcept
 {

@@ -15,8 +15,8 @@
 #define LAPMESH_INTERNAL_SPD_SOLVER_H
 
 #include <lapmesh/errors.h>
-#include <lapmesh/huge_pages.h>
 #include <lapmesh/internal/cholmod.h>
+#include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/parallel.h>
 #include <lapmesh/internal/subnormals.h>
 #include <lapmesh/internal/row_sort.h>
@@ -224,8 +224,8 @@ public:
   std::vector<Index> analyze(const SpMat& A, int planned_factorizations)
   {
     // The analysis and the factor take much memory that the cache of working arrays does not
-    // serve: emptied first, the cache does not add to the call's peak.
-    release_working_memory();
+    // serve: emptied of its large mappings first, the cache does not add to the call's peak.
+    release_cached_large_arrays();
     if(m_external.factor) return {};  // the user's solver analyses in its factor()
 #ifdef LAPMESH_HAS_CHOLMOD
     if(m_cholmod) {
@@ -274,7 +274,7 @@ public:
   bool factorize(const SpMat& A)
   {
     m_failure.clear();
-    release_working_memory();  // as in analyze()
+    release_cached_large_arrays();  // as in analyze()
     if(m_external.factor) {
       const bool ok = m_external.factor(SpMat(A.selfadjointView<Eigen::Lower>()));
       if(!ok) m_failure = "the user's sparse_linear_solver failed";

@@ -401,7 +401,7 @@ inline void prepare_for_many_solves(Cholmod_supernodal_llt& f)
 template <typename Factor>
 void factorise_or_throw(Factor& f, const Eigen::SparseMatrix<double>& K)
 {
-  release_working_memory();  // the factor is the run's largest block: no cached mapping beside it
+  release_cached_large_arrays();  // the factor is the run's largest block: no large cached mapping beside it
   f.compute(K);
   if(f.info() != Eigen::Success)
     throw Numerical_error("spectral solver: the Cholesky factorisation of -S - sigma M failed "
