@@ -37,23 +37,14 @@ inline bool huge_pages_enabled()
 }
 
 /// Bytes of freed working memory that lapmesh keeps mapped for its next calls.
-inline std::size_t cached_working_memory()
-{
-  return internal::Mapping_cache::large_arrays().cached_bytes() + internal::Mapping_cache::small_arrays().cached_bytes();
-}
+inline std::size_t cached_working_memory() { return internal::Mapping_cache::total_cached_bytes(); }
 
 /// Hands the cached working memory back to the system; returns how many bytes that was.
-inline std::size_t release_working_memory()
-{
-  return internal::Mapping_cache::large_arrays().release() + internal::Mapping_cache::small_arrays().release();
-}
+inline std::size_t release_working_memory() { return internal::Mapping_cache::release_both(); }
 
 /// The most bytes of freed working memory that lapmesh keeps: 1 GiB, or an eighth of the
 /// physical memory where that is less, unless set. Arrays under 4 MiB take at most a sixteenth.
-inline std::size_t working_memory_cache_limit()
-{
-  return internal::Mapping_cache::large_arrays().limit() + internal::Mapping_cache::small_arrays().limit();
-}
+inline std::size_t working_memory_cache_limit() { return internal::Mapping_cache::total_limit(); }
 
 /// Sets that limit; 0 keeps nothing. What the cache holds over the new limit is handed back.
 inline void set_working_memory_cache_limit(std::size_t bytes) { internal::Mapping_cache::set_total_limit(bytes); }

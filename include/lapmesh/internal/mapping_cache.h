@@ -56,31 +56,26 @@ class Mapping_cache
 public:
   static constexpr std::size_t max_entries = 64;
   static constexpr std::size_t default_limit = std::size_t(1) << 30;
-  /// The small arrays' share of a limit.
+  /// The small arrays' cache gets one part in this many of a limit of both caches.
   static constexpr std::size_t small_arrays_share = 16;
 
-  /// The process's cache of the mappings of large arrays, in huge pages (best fit, carved). Never
-  /// destroyed: arrays in static storage may be freed after it would be.
-  static Mapping_cache& large_arrays() noexcept
-  {
-    alignas(Mapping_cache) static unsigned char storage[sizeof(Mapping_cache)];
-    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache(false);
-    return *cache;
-  }
+  /// The process's cache of the mappings of large arrays, in huge pages (best fit, carved).
+  static Mapping_cache& large_arrays() noexcept { return process_cache<false>(); }
   /// The process's cache of the mappings of small arrays, in small pages (exact sizes).
-  static Mapping_cache& small_arrays() noexcept
-  {
-    alignas(Mapping_cache) static unsigned char storage[sizeof(Mapping_cache)];
-    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache(true);
-    return *cache;
-  }
+  static Mapping_cache& small_arrays() noexcept { return process_cache<true>(); }
 
-  /// Both caches' limit together: the small arrays' share, and the rest for the large ones.
-  static std::size_t default_total_limit() noexcept { return std::min(default_limit, physical_memory() / 8); }
+  /// The two caches together, as the public functions of huge_pages.h see them.
+  static std::size_t total_cached_bytes() noexcept
+  {
+    return large_arrays().cached_bytes() + small_arrays().cached_bytes();
+  }
+  static std::size_t release_both() noexcept { return large_arrays().release() + small_arrays().release(); }
+  static std::size_t total_limit() noexcept { return large_arrays().limit() + small_arrays().limit(); }
+  /// Splits `bytes` between the caches: the small arrays' share, the rest for the large ones.
   static void set_total_limit(std::size_t bytes) noexcept
   {
-    small_arrays().set_limit(bytes / small_arrays_share);
-    large_arrays().set_limit(bytes - bytes / small_arrays_share);
+    small_arrays().set_limit(share_of(bytes, true));
+    large_arrays().set_limit(share_of(bytes, false));
   }
 
   /// A cached mapping of `bytes` bytes (whole pages): the head of the smallest one that holds
@@ -101,10 +96,9 @@ public:
   /// new mapping of whole huge pages not written yet, until it is full or the cache empty (the
   /// last one moved may leave its tail cached). A part the kernel does not move (a mapping it has
   /// split into areas of other attributes) is unmapped instead: its place in the new mapping is
-  /// faulted in fresh. Not with exact sizes, whose mappings are never carved.
+  /// faulted in fresh. For the large arrays' cache only: exact sizes are never carved.
   void move_into(void* address, std::size_t bytes) noexcept
   {
-    if(m_exact_sizes) return;
     std::lock_guard<std::mutex> lock(m_mutex);
     for(std::size_t moved = 0; m_count > 0 && moved < bytes;) {
       const std::size_t part = std::min(m_entries[0].bytes, bytes - moved);
@@ -160,10 +154,23 @@ private:
   };
 
   explicit Mapping_cache(bool exact_sizes) noexcept
-    : m_exact_sizes(exact_sizes),
-      m_limit(exact_sizes ? default_total_limit() / small_arrays_share
-                          : default_total_limit() - default_total_limit() / small_arrays_share)
+    : m_exact_sizes(exact_sizes), m_limit(share_of(std::min(default_limit, physical_memory() / 8), exact_sizes))
   {}
+
+  /// Never destroyed: arrays in static storage may be freed after it would be.
+  template <bool ExactSizes>
+  static Mapping_cache& process_cache() noexcept
+  {
+    alignas(Mapping_cache) static unsigned char storage[sizeof(Mapping_cache)];
+    static Mapping_cache* cache = ::new(static_cast<void*>(storage)) Mapping_cache(ExactSizes);
+    return *cache;
+  }
+  /// The part of a limit of both caches that the small arrays' cache (exact sizes) or the large
+  /// arrays' one gets.
+  static std::size_t share_of(std::size_t total, bool exact_sizes) noexcept
+  {
+    return exact_sizes ? total / small_arrays_share : total - total / small_arrays_share;
+  }
 
   static std::size_t physical_memory() noexcept
   {

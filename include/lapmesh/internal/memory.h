@@ -122,15 +122,29 @@ inline Block_place block_place(std::size_t bytes) noexcept
 #endif
 }
 
-/// `bytes` rounded up to whole pages of the system's.
-inline std::size_t round_up_to_pages(std::size_t bytes) noexcept
+/// The system's page size (read once per process).
+inline std::size_t system_page_bytes() noexcept
 {
 #if defined(__linux__)
   static const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096);
+  return page;
 #else
-  const std::size_t page = 4096;
+  return 4096;
 #endif
+}
+
+/// The bytes that a block of `bytes` placed at `place` (not the heap) maps: whole small or huge
+/// pages. Less than `bytes` only where rounding up overflows.
+inline std::size_t mapped_bytes(Block_place place, std::size_t bytes) noexcept
+{
+  const std::size_t page = place == Block_place::huge_page_mapping ? huge_page_bytes : system_page_bytes();
   return (bytes + page - 1) / page * page;
+}
+
+/// The cache of a mapping's place.
+inline Mapping_cache& cache_of(Block_place place) noexcept
+{
+  return place == Block_place::small_page_mapping ? Mapping_cache::small_arrays() : Mapping_cache::large_arrays();
 }
 
 /// `bytes` of memory, not initialised: a block of whole 2 MiB pages advised huge (a cached one that
@@ -141,18 +155,16 @@ inline void* allocate_large(std::size_t bytes)
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   const Block_place place = block_place(bytes);
-  if(place == Block_place::small_page_mapping) {
-    const std::size_t size = round_up_to_pages(bytes);
-    if(void* cached = Mapping_cache::small_arrays().take(size)) return cached;
-    void* mapped = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if(mapped == MAP_FAILED) throw std::bad_alloc();
-    return mapped;
-  }
-  if(place == Block_place::huge_page_mapping) {
-    const std::size_t size = round_up_to_huge_pages(bytes);
+  if(place != Block_place::heap) {
+    const std::size_t size = mapped_bytes(place, bytes);
     if(size < bytes) throw std::bad_alloc();
-    Mapping_cache& cache = Mapping_cache::large_arrays();
+    Mapping_cache& cache = cache_of(place);
     if(void* cached = cache.take(size)) return cached;
+    if(place == Block_place::small_page_mapping) {
+      void* mapped = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      if(mapped == MAP_FAILED) throw std::bad_alloc();
+      return mapped;
+    }
     // Map one huge page more and unmap what lies outside the first aligned block.
     void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if(mapped == MAP_FAILED) throw std::bad_alloc();
@@ -182,14 +194,10 @@ inline void deallocate_large(void* p, std::size_t bytes) noexcept
 {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   const Block_place place = block_place(bytes);
-  if(place == Block_place::small_page_mapping) {
-    const std::size_t size = round_up_to_pages(bytes);
-    if(!Mapping_cache::small_arrays().keep(p, size)) munmap(p, size);
-    return;
-  }
-  if(place == Block_place::huge_page_mapping) {
-    const std::size_t size = round_up_to_huge_pages(bytes);
-    if(bypassing_mapping_cache() || !Mapping_cache::large_arrays().keep(p, size)) munmap(p, size);
+  if(place != Block_place::heap) {
+    const std::size_t size = mapped_bytes(place, bytes);
+    const bool bypass = place == Block_place::huge_page_mapping && bypassing_mapping_cache();
+    if(bypass || !cache_of(place).keep(p, size)) munmap(p, size);
     return;
   }
 #endif
@@ -288,7 +296,7 @@ inline void populate_for_writing(const void* p, std::size_t bytes) noexcept
   constexpr int populate_write = 23;  // the value of Linux's uapi, which older C libraries do not name
 #endif
   if(bytes < huge_page_advice_min_bytes) return;
-  static const std::uintptr_t page = std::uintptr_t(sysconf(_SC_PAGESIZE) > 0 ? sysconf(_SC_PAGESIZE) : 4096);
+  const std::uintptr_t page = system_page_bytes();
   const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p), first = begin - begin % page;
   madvise(reinterpret_cast<void*>(first), begin + bytes - first, populate_write);
 #else
