@@ -22,6 +22,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <sstream>
 
@@ -181,6 +182,28 @@ TEST(Denoising, DeviationMatchesDirectComputations)
   // Normal error: between 0 and 90 degrees and non-zero.
   EXPECT_GT(d.normal_angle_error, 1.0);
   EXPECT_LT(d.normal_angle_error, 90.0);
+}
+
+TEST(Denoising, NormalErrorOfAMeshWhoseFaceCrossProductsOverflowIsNotANumber)
+{
+  // A vertex normal is zero only where the faces' cross products sum to zero; an overflowed sum
+  // gives no direction, so a blown-up mesh must not score a finite normal error.
+  using lapmesh::internal::unit_vertex_normal;
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(unit_vertex_normal(Eigen::Vector3d::Zero()), Eigen::Vector3d::Zero());
+  EXPECT_TRUE(unit_vertex_normal(Eigen::Vector3d(3, 0, 4)).isApprox(Eigen::Vector3d(0.6, 0, 0.8), 1e-15));
+  EXPECT_TRUE(unit_vertex_normal(Eigen::Vector3d(inf, 0, 0)).hasNaN());
+  EXPECT_TRUE(unit_vertex_normal(Eigen::Vector3d(std::nan(""), 1, 0)).hasNaN());
+
+  const Mesh clean = to_mesh(lapmesh::icosphere(1));
+  Mesh blown_up = clean;
+  for(auto v : vertices(blown_up)) blown_up.point(v) = CGAL::ORIGIN + 1e160 * (blown_up.point(v) - CGAL::ORIGIN);
+  const lapmesh::Mesh_deviation d = lapmesh::mesh_deviation(clean, blown_up);
+  EXPECT_TRUE(std::isnan(d.normal_angle_error)) << d.normal_angle_error;
+  // Scaled by a power of two that keeps every product finite, the normals do not change.
+  Mesh scaled = clean;
+  for(auto v : vertices(scaled)) scaled.point(v) = CGAL::ORIGIN + 0x1p40 * (scaled.point(v) - CGAL::ORIGIN);
+  EXPECT_LE(lapmesh::mesh_deviation(clean, scaled).normal_angle_error, 1e-12);
 }
 
 TEST(Denoising, HausdorffEqualsTheDisplacementOfAVertexAboveAPlane)

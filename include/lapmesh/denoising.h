@@ -67,7 +67,7 @@ public:
       Eigen::Vector3d c;
       volume_and_centroid(t, reference, m_volume, c);
     }
-    m_reference_normals = vertex_normals(reference);
+    m_reference_normals = unit_normals(reference);
     m_spacing_factor = hausdorff_spacing;
     m_spacing = hausdorff_spacing * mean_edge_length(t, reference);
     m_reference_surface = Surface_distance(reference, t.triangles);
@@ -92,7 +92,7 @@ public:
       d.rms_distance = std::numeric_limits<double>::infinity();
       return d;
     }
-    const Positions N = vertex_normals(P);
+    const Positions N = unit_normals(P);
     double angle_sum = 0;
     for(Index i = 0; i < P.rows(); ++i) {
       const Eigen::Vector3d a = N.row(i), b = m_reference_normals.row(i);
@@ -119,22 +119,18 @@ public:
   }
 
 private:
-  Positions vertex_normals(const Positions& P) const
+  /// Area-weighted unit vertex normals of P. Unlike the curvatures' and the noise's, no face is
+  /// refused: a smoothing may have collapsed or blown up the faces this measures.
+  Positions unit_normals(const Positions& P) const
   {
-    Positions N = Positions::Zero(P.rows(), 3);
+    Working_array<double> sums(3 * std::size_t(P.rows()), 0.0);
     for(Index f = 0; f < m_t->num_faces; ++f) {
-      const Index a = m_t->triangles[3 * f], b = m_t->triangles[3 * f + 1], c = m_t->triangles[3 * f + 2];
-      const Eigen::Vector3d pa = P.row(a), pb = P.row(b), pc = P.row(c);
-      const Eigen::RowVector3d n = (pb - pa).cross(pc - pa).transpose();  // 2 x area x unit normal
-      N.row(a) += n;
-      N.row(b) += n;
-      N.row(c) += n;
+      const Index* corner = &m_t->triangles[3 * f];
+      const Eigen::Vector3d pa = P.row(corner[0]), pb = P.row(corner[1]), pc = P.row(corner[2]);
+      const Eigen::Vector3d cross = (pb - pa).cross(pc - pa);
+      for(int k = 0; k < 3; ++k) Eigen::Map<Eigen::Vector3d>(&sums[3 * std::size_t(corner[k])]) += cross;
     }
-    for(Index i = 0; i < P.rows(); ++i) {
-      const double len = N.row(i).norm();
-      if(len > 0) N.row(i) /= len;
-    }
-    return N;
+    return vertex_normals(sums, m_parallel);
   }
 
   const Mesh_topology* m_t;

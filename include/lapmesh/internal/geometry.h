@@ -356,11 +356,12 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
   });
 }
 
-/// The unit vector along a vertex's sum of incident face cross products; zero where the sum is.
+/// The unit vector along a vertex's sum of incident face cross products; zero where the sum is
+/// zero, not a number where it is not finite.
 inline Eigen::Vector3d unit_vertex_normal(const Eigen::Vector3d& face_normal_sum)
 {
   const double len = face_normal_sum.norm();
-  return len > 0 ? Eigen::Vector3d(face_normal_sum / len) : Eigen::Vector3d::Zero();
+  return len == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(face_normal_sum / len);
 }
 
 /// Area-weighted unit vertex normals from the sums of the incident face cross products, three
