@@ -80,7 +80,7 @@ inline double noise_sigma(const Mesh_topology& t, const Positions& P, double lev
 /// in place) instead of refusing the mesh; a face out of the representable range is refused.
 inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
 {
-  Working_array<double> sums(3 * std::size_t(t.num_vertices), 0.0);
+  Corner_value_sums<true, 3, true, Working_array<double>> sums(t);
   Eigen::Vector3d cross;
   for(Index f = 0; f < t.num_faces; ++f) {
     if(!face_cross_in_range(t, P, f, cross)) {
@@ -88,10 +88,9 @@ inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
       if(d == Face_defect::zero_area) continue;
       throw_face_defect(f, d);
     }
-    for(Index a = 0; a < 3; ++a)
-      Eigen::Map<Eigen::Vector3d>(&sums[3 * std::size_t(t.triangles[3 * f + a])]) += cross;
+    sums.add_face(f, cross.data());
   }
-  return vertex_normals(sums, false);
+  return vertex_normals(sums.finish(t, false), false);
 }
 
 /// Adds noise to P in place; returns sigma.

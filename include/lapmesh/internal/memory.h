@@ -147,6 +147,16 @@ inline Mapping_cache& cache_of(Block_place place) noexcept
   return place == Block_place::small_page_mapping ? Mapping_cache::small_arrays() : Mapping_cache::large_arrays();
 }
 
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+/// A new private mapping of `bytes` bytes (whole pages), read and written. Throws std::bad_alloc.
+inline void* map_fresh_pages(std::size_t bytes)
+{
+  void* mapped = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if(mapped == MAP_FAILED) throw std::bad_alloc();
+  return mapped;
+}
+#endif
+
 /// `bytes` of memory, not initialised: a block of whole 2 MiB pages advised huge (a cached one that
 /// holds it, else a new mapping that takes over the cached pages first, mapping_cache.h), a block of
 /// whole small pages (a cached one of its size, else a new mapping), or one from operator new, as
@@ -160,14 +170,9 @@ inline void* allocate_large(std::size_t bytes)
     if(size < bytes) throw std::bad_alloc();
     Mapping_cache& cache = cache_of(place);
     if(void* cached = cache.take(size)) return cached;
-    if(place == Block_place::small_page_mapping) {
-      void* mapped = mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-      if(mapped == MAP_FAILED) throw std::bad_alloc();
-      return mapped;
-    }
+    if(place == Block_place::small_page_mapping) return map_fresh_pages(size);
     // Map one huge page more and unmap what lies outside the first aligned block.
-    void* mapped = mmap(nullptr, size + huge_page_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if(mapped == MAP_FAILED) throw std::bad_alloc();
+    void* mapped = map_fresh_pages(size + huge_page_bytes);
     const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(mapped);
     const std::uintptr_t first = round_up_to_huge_pages(begin);
     if(first > begin) munmap(mapped, first - begin);
