@@ -123,14 +123,11 @@ private:
   /// refused: a smoothing may have collapsed or blown up the faces this measures.
   Positions unit_normals(const Positions& P) const
   {
-    Corner_value_sums<true, 3, true, Working_array<double>> sums(*m_t);
-    for(Index f = 0; f < m_t->num_faces; ++f) {
-      const Index* corner = &m_t->triangles[3 * f];
-      const Eigen::Vector3d pa = P.row(corner[0]), pb = P.row(corner[1]), pc = P.row(corner[2]);
-      const Eigen::Vector3d cross = (pb - pa).cross(pc - pa);
-      sums.add_face(f, cross.data());
-    }
-    return vertex_normals(sums.finish(*m_t, false), m_parallel);
+    return vertex_normals_of_faces(*m_t, m_parallel, [&](Index f, Eigen::Vector3d& cross) {
+      const auto [pa, pb, pc] = face_points(*m_t, P, f);
+      cross = (pb - pa).cross(pc - pa);
+      return true;
+    });
   }
 
   const Mesh_topology* m_t;

@@ -80,17 +80,12 @@ inline double noise_sigma(const Mesh_topology& t, const Positions& P, double lev
 /// in place) instead of refusing the mesh; a face out of the representable range is refused.
 inline Positions noise_normals(const Mesh_topology& t, const Positions& P)
 {
-  Corner_value_sums<true, 3, true, Working_array<double>> sums(t);
-  Eigen::Vector3d cross;
-  for(Index f = 0; f < t.num_faces; ++f) {
-    if(!face_cross_in_range(t, P, f, cross)) {
-      const Face_defect d = refused_face_defect(t, P, f);
-      if(d == Face_defect::zero_area) continue;
-      throw_face_defect(f, d);
-    }
-    sums.add_face(f, cross.data());
-  }
-  return vertex_normals(sums.finish(t, false), false);
+  return vertex_normals_of_faces(t, false, [&](Index f, Eigen::Vector3d& cross) {
+    if(face_cross_in_range(t, P, f, cross)) return true;
+    const Face_defect d = refused_face_defect(t, P, f);
+    if(d != Face_defect::zero_area) throw_face_defect(f, d);
+    return false;
+  });
 }
 
 /// Adds noise to P in place; returns sigma.

@@ -376,6 +376,19 @@ inline Positions vertex_normals(const Working_array<double>& face_normal_sums, b
   return normals;
 }
 
+/// vertex_normals() from the faces' cross products, which `face_cross(f, cross)` sets for face f;
+/// a face for which it returns false adds nothing. For callers with their own rule for faces
+/// that compute_corner_geometry() would refuse.
+template <typename Face_cross>
+Positions vertex_normals_of_faces(const Mesh_topology& t, bool parallel, Face_cross&& face_cross)
+{
+  Corner_value_sums<true, 3, true, Working_array<double>> sums(t);
+  Eigen::Vector3d cross;
+  for(Index f = 0; f < t.num_faces; ++f)
+    if(face_cross(f, cross)) sums.add_face(f, cross.data());
+  return vertex_normals(sums.finish(t, false), parallel);
+}
+
 /// Calls row(i, r) for every vertex i with r = (S X)_i = sum_j S_ij (x_j - x_i), for the
 /// cotangent stiffness S = C, computed from the corners without a matrix: corner c at i gives
 /// 1/2 (cot_r (x_q - x_i) + cot_q (x_r - x_i)).
