@@ -576,6 +576,16 @@ TEST(Smoothing, TheFreeBlockInAGivenOrderIsThePermutedBlock)
   ordered.fill_rhs(pencil.stiffness, -lambda, pencil.mass, 1.0, P, Bo, false);
   for(Index a = 0; a < nf; ++a) ASSERT_EQ(Bo.row(a), Bn.row(order[a]));
 
+  // Its map from the stiffness released (no fill follows), the matrix and the right-hand side
+  // stay as they were, and a fill is refused instead of reading the freed map.
+  const SpMat filled = ordered.matrix();
+  ordered.release_fill_map();
+  EXPECT_EQ(SpMat(ordered.matrix() - filled).norm(), 0.0);
+  Eigen::MatrixXd released_rhs(nf, 3);
+  ordered.fill_rhs(pencil.stiffness, -lambda, pencil.mass, 1.0, P, released_rhs, false);
+  EXPECT_EQ(released_rhs, Bo);
+  EXPECT_THROW(ordered.fill_matrix(pencil.stiffness, -lambda, pencil.mass, 1.0), std::logic_error);
+
   Eigen::MatrixXd Pn = P, Po = P;
   natural.scatter(Eigen::MatrixXd(An.ldlt().solve(Bn)), Pn);
   ordered.scatter(Eigen::MatrixXd(Ao.ldlt().solve(Bo)), Po);
@@ -589,6 +599,35 @@ TEST(Smoothing, TheFreeBlockInAGivenOrderIsThePermutedBlock)
 }
 
 #ifdef LAPMESH_HAS_CHOLMOD
+TEST(Smoothing, TheFirstFactorisationOfAnAnalysisHandsBackTheCachedWorkingArrays)
+{
+  // A factor's values, most of an implicit step's peak, are not written beside the mappings that
+  // the step's earlier stages freed into the caches: the first numeric factorisation of an
+  // analysis hands them back. The later ones write into the factor they have and leave the
+  // caches alone.
+  using lapmesh::internal::Working_array;
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(3, 1.0)));
+  Eigen::SparseMatrix<double> K = -pencil.stiffness;
+  K.diagonal() += pencil.mass;
+  const std::size_t small_array = (std::size_t(1) << 20) / sizeof(double);  // the small arrays' cache
+  lapmesh::release_working_memory();
+  { Working_array<double> freed(small_array); }
+  ASSERT_GT(lapmesh::cached_working_memory(), 0u);
+  lapmesh::internal::Cholmod_supernodal_llt llt;
+  llt.analyzePattern(K);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  EXPECT_GT(lapmesh::cached_working_memory(), 0u);  // the analysis leaves them
+  llt.factorize(K);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  EXPECT_EQ(lapmesh::cached_working_memory(), 0u);
+  { Working_array<double> freed(small_array); }
+  llt.factorize(K);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  EXPECT_GT(lapmesh::cached_working_memory(), 0u);
+  lapmesh::release_working_memory();
+}
+
 TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
 {
   // The block rebuilt in the order of CHOLMOD's analysis and factorised as given has the same

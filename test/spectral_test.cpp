@@ -276,6 +276,7 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
   // one column to large dense separators, at shifts from below the spectrum to far inside it.
   Mesh elephant;
   lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant);
+  int widest_update = 0;  // the most rows of one supernode that update one later supernode
   for(const Mesh& m : {to_mesh(lapmesh::icosphere(4, 1.0)), to_mesh(lapmesh::torus(60, 40, 1.0, 0.3)), elephant}) {
     const auto pencil = lapmesh::laplacian_pencil(m);
     const Eigen::SparseMatrix<double> mS = -pencil.stiffness;
@@ -284,6 +285,21 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
     lapmesh::internal::Cholmod_supernodal_llt llt;
     llt.compute(K);
     ASSERT_EQ(llt.info(), Eigen::Success);
+    {
+      const cholmod_factor& f = *llt.factor();
+      const int *super = static_cast<const int*>(f.super), *pi = static_cast<const int*>(f.pi);
+      const int* rows = static_cast<const int*>(f.s);
+      std::vector<int> super_of(f.n);
+      for(std::size_t s = 0; s < f.nsuper; ++s)
+        for(int j = super[s]; j < super[s + 1]; ++j) super_of[std::size_t(j)] = int(s);
+      for(std::size_t d = 0; d < f.nsuper; ++d)
+        for(int r = pi[d] + (super[d + 1] - super[d]); r < pi[d + 1];) {
+          int end = r;
+          while(end < pi[d + 1] && super_of[std::size_t(rows[end])] == super_of[std::size_t(rows[r])]) ++end;
+          widest_update = std::max(widest_update, end - r);
+          r = end;
+        }
+    }
     lapmesh::internal::Supernodal_ldlt ldlt(*llt.factor());
     const Eigen::SparseMatrix<double> lower = ldlt.permuted_lower(mS);
     const double lambda_scale = 1.0 / pencil.mass.sum();
@@ -331,6 +347,8 @@ TEST(Spectral, SupernodalLdltEqualsTheSimplicialOne)
       EXPECT_EQ(std::count_if(dirty.begin(), dirty.end(), [](double x) { return std::isnan(x); }), 0) << tau;
     }
   }
+  // Updates wider than one chunk of columns were made chunk by chunk.
+  EXPECT_GT(widest_update, lapmesh::internal::Supernodal_ldlt::update_chunk_columns);
   // The structure of an analysis alone serves as well.
   {
     const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::torus(40, 30, 1.0, 0.3)));

@@ -284,6 +284,10 @@ public:
   {
     Subnormals_flushed_scope flushed;
     m_factorised_by_lapmesh = m_analysisIsOk && m_cholmodFactor->is_super && factorises_by_lapmesh_on(m_analysed_supernodes);
+    // The first factorisation of an analysis writes the factor's values, the largest block of
+    // the call: what the call's earlier stages freed goes back to the system before, rather
+    // than staying resident beside them.
+    if(m_analysisIsOk && m_cholmodFactor->xtype == CHOLMOD_PATTERN) hand_back_idle_memory();
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
       // Its work space (the update blocks, the per-column lists) lies freed in the heap:
@@ -408,6 +412,10 @@ private:
       Serial_openmp_scope serial;
       Base::analyzePattern(A);
     }
+    // The analysis's work space (a few integers per row, kept in the common block for the next
+    // call) is read neither by lapmesh's factorisation nor by its solves: freed, it is not
+    // resident beside the factor; a CHOLMOD routine that needs it allocates it again.
+    cholmod_free_work(&cholmod());
     m_analysed_supernodes = m_supernodes;
     release_free_heap(std::size_t(64) << 20);  // the analysis's work space, before the factor
   }

@@ -28,7 +28,8 @@
 // max_entries mappings, and no fresh page is faulted in while a cached large one is left:
 // lapmesh's own arrays never need more memory than they would without the caches. A computation
 // about to allocate much memory of another kind (a sparse factorisation) hands the large mappings
-// back (release_cached_large_arrays()); the small ones stay, as freed blocks in glibc's heap would.
+// back (release_cached_large_arrays()); the small ones stay, as freed blocks in glibc's heap would,
+// until a sparse factor's values are first written, before which both go (hand_back_idle_memory()).
 #ifndef LAPMESH_INTERNAL_MAPPING_CACHE_H
 #define LAPMESH_INTERNAL_MAPPING_CACHE_H
 

@@ -354,6 +354,18 @@ inline void release_free_heap(std::size_t min_bytes) noexcept
 #endif
 }
 
+/// Hands back to the system the memory that the process holds for lapmesh but that no array
+/// uses: the cached mappings of both sizes and the free pages of glibc's heap. Before a sparse
+/// factor's values are first written: they are the largest block of a call (of a one-step
+/// implicit smoothing, most of its peak), and the arrays that the call's assembly and analysis
+/// freed before would otherwise stay resident beside them. The
+/// price is the next call's first touch of those pages, small beside the factor's own.
+inline void hand_back_idle_memory() noexcept
+{
+  Mapping_cache::release_both();
+  release_free_heap(std::size_t(1) << 20);
+}
+
 /// Starts loading the cache line at p (a hint; no effect where the compiler has none).
 inline void prefetch(const void* p) noexcept
 {

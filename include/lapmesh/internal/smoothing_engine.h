@@ -527,6 +527,8 @@ private:
     // held neither beside the factorisation's work space nor beside the corner areas of the
     // next assembly (assemble_pencil() frees them before it sizes the stiffness).
     if(m_rebuild_stiffness) release(m_pencil.stiffness);
+    // No later step fills the matrix again: its map from the stiffness goes too.
+    if(!m_rebuild || it + 1 == m_s.iterations) m_system->release_fill_map();
     const bool ok = m_solver->factorize(m_system->matrix());
     ++m_report.factorizations;
     // M - lambda S is positive definite in exact arithmetic (M > 0, and -S is a sum of

@@ -102,6 +102,8 @@ public:
   /// A_FF = d_scale diag(d)_FF + s_scale S_FF, S with the pattern given at construction.
   void fill_matrix(const SpMat& S, double s_scale, const Eigen::VectorXd& d, double d_scale)
   {
+    if(m_source.size() != std::size_t(m_A.nonZeros()))
+      throw std::logic_error("Constrained_spd_system: fill_matrix() after release_fill_map()");
     const double* values = S.valuePtr();
     double* a = m_A.valuePtr();
     const Index na = m_A.nonZeros();
@@ -109,6 +111,10 @@ public:
     for(Index i = 0; i < Index(m_free.size()); ++i)
       if(m_free[i]) a[m_diagonal[m_free_index[i]]] += d[i] * d_scale;
   }
+
+  /// Frees the slots of S that fill_matrix() reads, for a caller that fills the matrix no more:
+  /// they are not held beside a factorisation of the last matrix.
+  void release_fill_map() { std::vector<Index>().swap(m_source); }
 
   /// B_F = d_scale diag(d)_FF X_F - A_FB X_B for A as in fill_matrix(): row i of B is the free
   /// row of unknown i; X holds the current values, its fixed rows the constraints.

@@ -43,6 +43,12 @@ namespace internal {
 class Supernodal_ldlt
 {
 public:
+  /// The columns of an update block made by one matrix product. As tall as the descendant's
+  /// rows from the chunk's first on, such a block is small beside a whole update, whose work
+  /// space would stay resident beside the factor, and it skips the rows above the chunk that the
+  /// lower triangle does not take.
+  static constexpr int update_chunk_columns = 64;
+
   using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
 
   /// How the structure of the CHOLMOD factor is held.
@@ -263,14 +269,18 @@ private:
     while(stop < drow && drows[stop] < k2) ++stop;
     const int inside = stop - start, below = drow - start;
     const Block Ld(m_values + m_px[d], drow, dcol, Eigen::OuterStride<>(drow));
-    Block scaled = work_block(m_scaled, dcol, inside);  // D_d L_d(rows in [k1, k2))^T
-    for(int j = 0; j < inside; ++j)
-      for(int c = 0; c < dcol; ++c) scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j, c);
-    Block update = work_block(m_update, below, inside);
-    tall_gemm(false, 1.0, Ld.middleRows(start, below), scaled, 0.0, update);
-    for(int j = 0; j < inside; ++j) {
-      double* column = X + std::size_t(drows[start + j] - k1) * std::size_t(nrow);
-      for(int i = j; i < below; ++i) column[m_position[std::size_t(drows[start + i])]] -= update(i, j);
+    for(int j0 = 0; j0 < inside; j0 += update_chunk_columns) {
+      const int width = std::min(inside - j0, update_chunk_columns), rows = below - j0;
+      Block scaled = work_block(m_scaled, dcol, width);  // D_d L_d(chunk rows)^T
+      for(int j = 0; j < width; ++j)
+        for(int c = 0; c < dcol; ++c) scaled(c, j) = m_pivots[dk1 + c] * Ld(start + j0 + j, c);
+      Block update = work_block(m_update, rows, width);
+      tall_gemm(false, 1.0, Ld.middleRows(start + j0, rows), scaled, 0.0, update);
+      const int* update_rows = drows + start + j0;
+      for(int j = 0; j < width; ++j) {
+        double* column = X + std::size_t(update_rows[j] - k1) * std::size_t(nrow);
+        for(int i = j; i < rows; ++i) column[m_position[std::size_t(update_rows[i])]] -= update(i, j);
+      }
     }
     m_progress[d] = stop;
   }
