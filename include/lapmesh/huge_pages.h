@@ -8,7 +8,9 @@
 // lapmesh's own working arrays of 256 KiB or more (on meshes of some thousands of vertices and
 // up) are mappings of their own, in huge pages from 4 MiB on. When a call frees them, lapmesh
 // keeps them, up to a limit, for the next call, which then finds its arrays warm instead of
-// faulted in and zeroed by the kernel page by page (internal/mapping_cache.h). A program that is
+// faulted in and zeroed by the kernel page by page (internal/mapping_cache.h). A sparse
+// factorisation (implicit smoothing, the eigenpairs) hands them back before it first writes its
+// factor, the largest block of such a call, rather than hold them beside it. A program that is
 // done with large meshes, or keeps memory tight, hands them back with release_working_memory() or
 // lowers the limit. `LAPMESH_HUGE_PAGES=0` also keeps the working arrays in the C++ heap.
 #ifndef LAPMESH_HUGE_PAGES_H

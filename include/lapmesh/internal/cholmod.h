@@ -285,9 +285,18 @@ public:
     Subnormals_flushed_scope flushed;
     m_factorised_by_lapmesh = m_analysisIsOk && m_cholmodFactor->is_super && factorises_by_lapmesh_on(m_analysed_supernodes);
     // The first factorisation of an analysis writes the factor's values, the largest block of
-    // the call: what the call's earlier stages freed goes back to the system before, rather
-    // than staying resident beside them.
-    if(m_analysisIsOk && m_cholmodFactor->xtype == CHOLMOD_PATTERN) hand_back_idle_memory();
+    // the call. Allocated first, they come from glibc's free blocks where those hold them (warm,
+    // as in a repeated call) and from fresh pages otherwise; then what else lies free goes back
+    // to the system before the values are written, rather than stay resident beside them.
+    if(m_analysisIsOk && m_cholmodFactor->xtype == CHOLMOD_PATTERN) {
+      if(m_cholmodFactor->is_super &&
+         !cholmod_change_factor(CHOLMOD_REAL, true, true, true, true, m_cholmodFactor, &cholmod())) {
+        m_factorizationIsOk = true;
+        m_info = Eigen::NumericalIssue;  // out of memory, in CHOLMOD's message
+        return;
+      }
+      hand_back_idle_memory();
+    }
     if(m_factorised_by_lapmesh) {
       factorize_by_lapmesh(A);
       // Its work space (the update blocks, the per-column lists) lies freed in the heap:
