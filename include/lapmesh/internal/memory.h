@@ -358,8 +358,8 @@ inline void release_free_heap(std::size_t min_bytes) noexcept
 /// uses: the cached mappings of both sizes and the free pages of glibc's heap. Before a sparse
 /// factor's values are first written: they are the largest block of a call (of a one-step
 /// implicit smoothing, most of its peak), and the arrays that the call's assembly and analysis
-/// freed before would otherwise stay resident beside them. The
-/// price is the next call's first touch of those pages, small beside the factor's own.
+/// freed before would otherwise stay resident beside them. The price: the next call touches
+/// those pages afresh (allocated before this, the values keep a block that glibc kept warm).
 inline void hand_back_idle_memory() noexcept
 {
   Mapping_cache::release_both();
