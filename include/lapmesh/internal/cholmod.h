@@ -392,14 +392,12 @@ private:
   /// The numeric factor by lapmesh's supernodal L D L^T on CHOLMOD's structure, written into
   /// CHOLMOD's factor as L |D|^1/2, which is CHOLMOD's L D^1/2 when D > 0: the state CHOLMOD's
   /// own factorisation leaves (a failure at a pivot <= 0 included, as CHOLMOD's "not positive
-  /// definite").
+  /// definite"). The factor holds values already (factorize() allocates them first).
   void factorize_by_lapmesh(const MatrixType& A)
   {
     cholmod_factor* L = m_cholmodFactor;
     m_factorizationIsOk = true;
     m_info = Eigen::NumericalIssue;
-    if(L->xtype == CHOLMOD_PATTERN && !cholmod_change_factor(CHOLMOD_REAL, true, true, true, true, L, &cholmod()))
-      return;
     // Made for each factorisation, on a view of the factor's structure: a copy, or its work
     // space kept, would add to the peak of a smoothing step and to the memory of the solves.
     Supernodal_ldlt ldlt(*L, Supernodal_ldlt::Structure_use::view);

@@ -306,7 +306,7 @@ private:
       const auto t0 = Clock::now();
       fill_rhs();  // before factorize(), which may release the stiffness
       m_report.solve_seconds += seconds_since(t0);
-      if(!m_rebuild || it + 1 == m_s.iterations) release_topology();  // the last operator is assembled
+      if(is_last_operator(it)) release_topology();
       if(!m_factorized) factorize(it);
       const auto t1 = Clock::now();
       if(!m_solver->solve_in_place(m_B) || !m_B.allFinite())
@@ -507,6 +507,9 @@ private:
     return solved;
   }
 
+  /// Whether step `it` solves with the last operator of the run: none is assembled after it.
+  bool is_last_operator(int it) const { return !m_rebuild || it + 1 == m_s.iterations; }
+
   /// Once no operator is assembled any more, the corner lists and the pattern of a releasable
   /// topology are not read again (the triangles are: shape restoration and the error that names
   /// a collapsed face), so they are not held beside the factorisation.
@@ -527,8 +530,7 @@ private:
     // held neither beside the factorisation's work space nor beside the corner areas of the
     // next assembly (assemble_pencil() frees them before it sizes the stiffness).
     if(m_rebuild_stiffness) release(m_pencil.stiffness);
-    // No later step fills the matrix again: its map from the stiffness goes too.
-    if(!m_rebuild || it + 1 == m_s.iterations) m_system->release_fill_map();
+    if(is_last_operator(it)) m_system->release_fill_map();  // no later step fills the matrix
     const bool ok = m_solver->factorize(m_system->matrix());
     ++m_report.factorizations;
     // M - lambda S is positive definite in exact arithmetic (M > 0, and -S is a sum of
