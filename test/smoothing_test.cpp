@@ -628,6 +628,65 @@ TEST(Smoothing, TheFirstFactorisationOfAnAnalysisHandsBackTheCachedWorkingArrays
   lapmesh::release_working_memory();
 }
 
+// Between two factorisations of a rebuilt operator the factor's values are dead: the next step's
+// assembly writes its stiffness and corner cotangents there, so that no array of its own lies
+// beside the factor (the cotangents of this mesh would take a mapping of the small arrays' cache).
+// Only after a factorisation, only where they fit, and only for the cotangent Laplacian.
+TEST(Smoothing, ALaterStepAssemblesIntoTheDeadFactor)
+{
+  using namespace lapmesh::internal;
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  lapmesh::Triangle_soup soup = lapmesh::icosphere(5);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> jitter(-0.002, 0.002);
+  for(auto& p : soup.points)
+    for(double& x : p) x += jitter(rng);
+  const Index n = Index(soup.points.size());
+  Working_array<Index> triangles;
+  for(const auto& f : soup.triangles) triangles.insert(triangles.end(), f.begin(), f.end());
+  ASSERT_GE(soup.triangles.size() * 3 * sizeof(double), small_mapping_min_bytes);
+  Positions P0(n, 3);
+  for(Index i = 0; i < n; ++i) P0.row(i) = Eigen::RowVector3d(soup.points[i][0], soup.points[i][1], soup.points[i][2]);
+  const Mesh_topology t = build_topology(n, triangles);
+
+  Smoothing_settings s;
+  s.lambda = 1e-3;
+  s.iterations = 4;
+  std::vector<std::size_t> cached_after_step;
+  s.progress = [&](int, int) { cached_after_step.push_back(lapmesh::cached_working_memory()); };
+  Positions into_factor = P0;
+  lapmesh::release_working_memory();
+  smooth_positions(t, into_factor, std::vector<char>(std::size_t(n), 0), s);
+  ASSERT_EQ(cached_after_step.size(), 4u);
+  for(std::size_t it = 0; it < 4; ++it) EXPECT_EQ(cached_after_step[it], 0u) << "after step " << it + 1;
+
+  // The same steps with Eigen's LDL^T, which lends no memory: the cotangents' mapping is cached
+  // after each assembly; the positions agree.
+  s.use_cholmod = false;
+  cached_after_step.clear();
+  Positions own_arrays = P0;
+  lapmesh::release_working_memory();
+  smooth_positions(t, own_arrays, std::vector<char>(std::size_t(n), 0), s);
+  EXPECT_GT(cached_after_step.back(), 0u);
+  EXPECT_LE((into_factor - own_arrays).cwiseAbs().maxCoeff(), 1e-13);
+  EXPECT_GT((into_factor - P0).cwiseAbs().maxCoeff(), 1e-4);
+  lapmesh::release_working_memory();
+
+  // The solver lends its values only once they exist, and only as many as they are.
+  const auto pencil = lapmesh::laplacian_pencil(to_mesh(lapmesh::icosphere(3, 1.0)));
+  const std::vector<char> all_free(std::size_t(pencil.mass.size()), 1);
+  const Constrained_spd_system natural(pencil.stiffness, all_free);
+  Spd_direct_solver solver(true);
+  const std::vector<Index> order = solver.analyze(natural.matrix(), 1);
+  Constrained_spd_system ordered(pencil.stiffness, all_free, order);
+  solver.analyze_in_order(ordered.matrix());
+  EXPECT_EQ(solver.values_to_overwrite(1), nullptr);  // a symbolic factor
+  ordered.fill_matrix(pencil.stiffness, -1e-3, pencil.mass, 1.0);
+  ASSERT_TRUE(solver.factorize(ordered.matrix()));
+  EXPECT_NE(solver.values_to_overwrite(solver.factor_values()), nullptr);
+  EXPECT_EQ(solver.values_to_overwrite(solver.factor_values() + 1), nullptr);
+}
+
 TEST(Smoothing, CholmodFactorOfTheBlockInItsOwnOrderIsTheFactorOfThatOrder)
 {
   // The block rebuilt in the order of CHOLMOD's analysis and factorised as given has the same

@@ -346,11 +346,14 @@ public:
     std::vector<double> by_rows(n * width, 0.0);
     for(std::size_t j = 0; j < std::size_t(cols); ++j)
       for(std::size_t i = 0; i < n; ++i) by_rows[i * width + j] = data[j * n + i];
-    supernodal_solve_rows(factor_view(), by_rows.data(), width);
+    solve_rows_in_place(by_rows.data(), width);
     for(std::size_t j = 0; j < std::size_t(cols); ++j)
       for(std::size_t i = 0; i < n; ++i) data[j * n + i] = by_rows[i * width + j];
     return true;
   }
+  /// Solves L L^T X = B in place for a factor in_given_order() and B held row by row (row i at
+  /// rows + i * width), `width` a supernodal_row_width() and the columns past B's zero: no copy.
+  void solve_rows_in_place(double* rows, std::size_t width) const { supernodal_solve_rows(factor_view(), rows, width); }
 
   /// solve_in_place() by CHOLMOD's supernodal solves, for any number of columns.
   bool cholmod_solve_in_place(double* data, Eigen::Index rows, Eigen::Index cols) const

@@ -92,6 +92,11 @@ struct Corner_geometry
   /// cot of the corner angle, 3 per face (want_cotangents). A working array: resize() leaves it
   /// uninitialised, which saves a zeroing pass that the face pass overwrites anyway.
   Working_array<double> cot;
+  /// Where the cotangents go instead when not null (3 per face; `cot` then stays empty): memory
+  /// that a caller lends for the call, such as a factor's values that nothing reads until a
+  /// factorisation rewrites them.
+  double* lent_cot = nullptr;
+  const double* cot_values() const { return lent_cot ? lent_cot : cot.data(); }
   Eigen::VectorXd vertex_area;  ///< A_i, the sum of the shares of i's corners
   /// The sum of i's corner angles (want_angles). This sum and the next never leave a call as
   /// they are, so they live in working arrays, whose pages the next call finds mapped.
@@ -294,7 +299,8 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
                                     Corner_geometry& g)
 {
   const Index m = t.num_faces;
-  if(request.want_cotangents) g.cot.resize(3 * std::size_t(m));
+  if(request.want_cotangents && !g.lent_cot) g.cot.resize(3 * std::size_t(m));
+  double* const cot_out = g.lent_cot ? g.lent_cot : g.cot.data();
   // How many faces ahead the positions of a face's corners are prefetched.
   constexpr Index prefetch_distance = 16;
   const Index* tri = t.triangles.data();
@@ -329,7 +335,7 @@ inline void compute_corner_geometry(const Mesh_topology& t, const Positions& P,
       }
       const double inv = 1.0 / dbl_area;
       const double cot[3] = {dot0 * inv, dot1 * inv, dot2 * inv};
-      if(request.want_cotangents) std::copy(cot, cot + 3, &g.cot[3 * std::size_t(f)]);
+      if(request.want_cotangents) std::copy(cot, cot + 3, cot_out + 3 * std::size_t(f));
 
       const double squared[3] = {l0, l1, l2};
       double share[3];
@@ -397,6 +403,7 @@ void for_each_cotangent_laplacian_row(const Mesh_topology& t, const Corner_geome
                                       bool parallel, const RowSink& row)
 {
   const Index* tri = t.triangles.data();
+  const double* cot = g.cot_values();
   const Index n = t.num_vertices;
   // The triangles and cotangents of a vertex's corners are fetched twice as far ahead as the
   // positions they name, which can only be read once the triangles have arrived.
@@ -405,7 +412,7 @@ void for_each_cotangent_laplacian_row(const Mesh_topology& t, const Corner_geome
     if(i + 2 * ahead < n)
       for(Index k = t.corner_begin[i + 2 * ahead]; k < t.corner_begin[i + 2 * ahead + 1]; ++k) {
         prefetch(&tri[t.vertex_corners[k]]);
-        prefetch(&g.cot[t.vertex_corners[k]]);
+        prefetch(&cot[t.vertex_corners[k]]);
       }
     if(i + ahead < n)
       for(Index k = t.corner_begin[i + ahead]; k < t.corner_begin[i + ahead + 1]; ++k) {
@@ -417,7 +424,7 @@ void for_each_cotangent_laplacian_row(const Mesh_topology& t, const Corner_geome
     Eigen::Vector3d s = Eigen::Vector3d::Zero();
     for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
       const Index c = t.vertex_corners[k], cq = next_corner(c), cr = prev_corner(c);
-      s += g.cot[cr] * (P.row(tri[cq]).transpose() - xi) + g.cot[cq] * (P.row(tri[cr]).transpose() - xi);
+      s += cot[cr] * (P.row(tri[cq]).transpose() - xi) + cot[cq] * (P.row(tri[cr]).transpose() - xi);
     }
     row(i, Eigen::Vector3d(0.5 * s));
   });
@@ -450,12 +457,13 @@ inline Positions uniform_laplacian_sums(const Mesh_topology& t, const Positions&
 inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geometry& g, double* values,
                                      bool parallel)
 {
+  const double* cot = g.cot_values();
   for_each_index(t.num_vertices, parallel, [&](Index i) {
     double diagonal = 0;
     for(Index s = t.outer[i]; s < t.outer[i + 1]; ++s) {
       const std::array<Index, 2>& c = t.slot_corners[s];
       if(s == t.diagonal_slot[i]) continue;
-      const double w = 0.5 * ((c[0] >= 0 ? g.cot[c[0]] : 0.0) + (c[1] >= 0 ? g.cot[c[1]] : 0.0));
+      const double w = 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
       values[s] = w;
       diagonal -= w;
     }

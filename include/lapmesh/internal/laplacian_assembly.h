@@ -22,11 +22,12 @@ namespace internal {
 /// The uniform or cotangent pencil of the positions P on the pattern of the topology t: the
 /// diagonal of M into `mass`, and S's values, one per slot of t.inner, into the array that
 /// `stiffness_values()` returns (sized for them, every slot is written). `after_geometry()` as in
-/// assemble_pencil().
+/// assemble_pencil(). `lent_cot`: memory for the corner cotangents (3 per face) that the caller
+/// lends (Corner_geometry::lent_cot), or null for an array of their own.
 template <typename StiffnessValues, typename AfterGeometry = void (*)()>
 void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, Laplacian laplacian, Vertex_area area,
                                   bool parallel, Eigen::VectorXd& mass, const StiffnessValues& stiffness_values,
-                                  const AfterGeometry& after_geometry = [] {})
+                                  const AfterGeometry& after_geometry = [] {}, double* lent_cot = nullptr)
 {
   require_manifold(t, to_string(laplacian));
   if(laplacian == Laplacian::uniform) {
@@ -36,6 +37,7 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
     return;
   }
   Corner_geometry g;
+  g.lent_cot = lent_cot;
   compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
   mass = std::move(g.vertex_area);
   after_geometry();

@@ -9,8 +9,11 @@
 // Cholesky factorisation of the free block (Constrained_spd_system, Spd_direct_solver in
 // internal/spd_solver.h): the pattern is built once, the symbolic analysis (ordering +
 // elimination tree) is computed once, and each iteration only refactorises numerically; the
-// three coordinates are solved against one factorisation. When the matrix cannot change
-// (uniform Laplacian, or a fixed operator) it is factorised once.
+// three coordinates are solved against one factorisation, in place, row by row. When the matrix
+// cannot change (uniform Laplacian, or a fixed operator) it is factorised once. A rebuilt
+// cotangent operator is assembled into the previous factor's memory, dead until the next
+// factorisation: no stiffness matrix or cotangent array of its own stands beside the factor,
+// most of a step's memory.
 //
 // Smoothing_worker is organised as CGAL's curvature-flow worker: init() (masks, restoration,
 // first assembly), setup_system() (stability bound, or the free block and its analysis),
@@ -165,6 +168,8 @@ public:
 
 private:
   using Block = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+  /// The right-hand side and solution, row by row, as the solver takes them (row_width()).
+  using Row_block = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
   bool is_explicit() const { return m_s.scheme == Smoothing_scheme::explicit_euler; }
 
@@ -238,7 +243,7 @@ private:
     analyze_system(planned_factorizations);
     m_report.solver = m_solver->name();
     m_report.analysis_seconds += seconds_since(t0);
-    m_B.resize(m_system->size(), 3);
+    m_B.setZero(m_system->size(), Index(m_solver->row_width(3)));
     // Preconditioned CG is tried until it fails once: then the operator changes too fast for an
     // old factor, and refactorising directly is cheaper than failed CG runs followed by a
     // factorisation anyway.
@@ -254,9 +259,17 @@ private:
     return is_explicit() && m_s.laplacian != Laplacian::intrinsic_delaunay;
   }
 
-  /// (S, M) of the current positions: into m_pencil, or S's values into m_stiffness_values.
+  /// (S, M) of the current positions: into m_pencil, or S's values into m_stiffness_values or
+  /// into the factor's memory (factor_memory_for_stiffness()).
   void assemble_operator()
   {
+    m_stiffness_in_factor = factor_memory_for_stiffness();
+    if(m_stiffness_in_factor) {  // the corner cotangents after S's values
+      double* values = m_stiffness_in_factor;
+      assemble_on_topology_pattern(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil.mass, [values] { return values; },
+                                   [] {}, values + m_t.num_nonzeros());
+      return;
+    }
     if(!keeps_values_on_topology_pattern()) {
       assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, m_pencil, m_s.mollification);
       return;
@@ -265,6 +278,30 @@ private:
       m_stiffness_values.resize(std::size_t(m_t.num_nonzeros()));
       return m_stiffness_values.data();
     });
+  }
+
+  /// Where a rebuilt cotangent stiffness goes once a step has been solved: into the factor's
+  /// values, which nothing reads until the next factorisation rewrites them, so that the
+  /// assembly adds neither a matrix nor its corner cotangents (which follow S's values there)
+  /// beside the factor. Not while preconditioned CG may solve with the old factor, nor for the
+  /// intrinsic Delaunay operator, whose pattern is not the topology's (fill_rhs() reads the
+  /// slots from the topology). nullptr where the solver holds no such memory (before the first
+  /// factorisation; Eigen's LDL^T, a user's solver) or too little of it.
+  double* factor_memory_for_stiffness() const
+  {
+    if(is_explicit() || !m_solver || m_try_preconditioned_cg || m_s.laplacian != Laplacian::cotangent) return nullptr;
+    return m_solver->values_to_overwrite(std::size_t(m_t.num_nonzeros()) + 3 * std::size_t(m_t.num_faces));
+  }
+
+  /// The current stiffness: m_pencil's, or the topology's pattern with the values in the factor's
+  /// memory.
+  Eigen::Map<const Eigen::SparseMatrix<double>> stiffness() const
+  {
+    if(m_stiffness_in_factor)
+      return {m_t.num_vertices, m_t.num_vertices, m_t.num_nonzeros(), m_t.outer.data(), m_t.inner.data(),
+              m_stiffness_in_factor};
+    const auto& S = m_pencil.stiffness;
+    return {S.rows(), S.cols(), S.nonZeros(), S.outerIndexPtr(), S.innerIndexPtr(), S.valuePtr()};
   }
 
   /// Whether the explicit steps alternate between m_P and m_alternate, a working array whose
@@ -309,11 +346,11 @@ private:
       if(is_last_operator(it)) release_topology();
       if(!m_factorized) factorize(it);
       const auto t1 = Clock::now();
-      if(!m_solver->solve_in_place(m_B) || !m_B.allFinite())
+      if(!m_solver->solve_rows_in_place(m_B.data(), m_B.rows(), std::size_t(m_B.cols()), 3) || !m_B.allFinite())
         throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
       m_report.solve_seconds += seconds_since(t1);
     }
-    m_system->scatter(m_B, m_P);
+    m_system->scatter(m_B.leftCols<3>(), m_P);
   }
 
   /// Rebuilds the operator (or only the mass, conformal flow) from the positions after `it` steps.
@@ -456,11 +493,16 @@ private:
   }
 
   /// (M - lambda S)_FF, scaled.
-  void fill_matrix() { m_system->fill_matrix(m_pencil.stiffness, -m_scaled_lambda, m_pencil.mass, m_system_scale); }
+  void fill_matrix()
+  {
+    const double* values = m_stiffness_in_factor ? m_stiffness_in_factor : m_pencil.stiffness.valuePtr();
+    m_system->fill_matrix(values, -m_scaled_lambda, m_pencil.mass, m_system_scale);
+  }
   /// M_FF P_F + lambda S_FB P_B, scaled as the matrix.
   void fill_rhs()
   {
-    m_system->fill_rhs(m_pencil.stiffness, -m_scaled_lambda, m_pencil.mass, m_system_scale, m_P, m_B, m_s.parallel);
+    auto rhs = m_B.leftCols<3>();
+    m_system->fill_rhs(stiffness(), -m_scaled_lambda, m_pencil.mass, m_system_scale, m_P, rhs, m_s.parallel);
   }
 
   /// Preconditioned CG (three coordinates as one block with per-column step sizes), warm
@@ -475,8 +517,9 @@ private:
     Block X(nf, 3);
     m_system->gather(m_P, X);
     const auto Asym = m_system->matrix().selfadjointView<Eigen::Lower>();
-    Block R = m_B - Asym * X, Z(nf, 3), D(nf, 3), Q(nf, 3);
-    const Eigen::RowVector3d bnorm = m_B.colwise().norm();
+    const Block B = m_B.leftCols<3>();
+    Block R = B - Asym * X, Z(nf, 3), D(nf, 3), Q(nf, 3);
+    const Eigen::RowVector3d bnorm = B.colwise().norm();
     bool ok = m_solver->solve(R, Z);
     D = Z;
     Eigen::RowVector3d rz = (R.cwiseProduct(Z)).colwise().sum();
@@ -498,7 +541,7 @@ private:
     bool solved = false;
     if(ok && X.allFinite() && ((R.colwise().norm().array()) <= 1e-12 * bnorm.array()).all()) {
       solved = true;
-      m_B = X;  // where solve_system() takes the solution from
+      m_B.leftCols<3>() = X;  // where solve_system() takes the solution from
       ++m_report.preconditioned_solves;
     } else {
       m_try_preconditioned_cg = false;
@@ -530,6 +573,7 @@ private:
     // held neither beside the factorisation's work space nor beside the corner areas of the
     // next assembly (assemble_pencil() frees them before it sizes the stiffness).
     if(m_rebuild_stiffness) release(m_pencil.stiffness);
+    m_stiffness_in_factor = nullptr;  // the factorisation writes over it
     if(is_last_operator(it)) m_system->release_fill_map();  // no later step fills the matrix
     const bool ok = m_solver->factorize(m_system->matrix());
     ++m_report.factorizations;
@@ -594,6 +638,7 @@ private:
   std::optional<Shape_restoration> m_restoration;
   Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S
   Working_array<double> m_stiffness_values;  ///< S on the topology's pattern (explicit scheme)
+  double* m_stiffness_in_factor = nullptr;   ///< S on the topology's pattern, in the factor's memory
   bool m_rebuild_stiffness = false;
   bool m_rebuild = false;  ///< the operator (or its mass) follows the positions
   // explicit
@@ -605,7 +650,7 @@ private:
   std::optional<Constrained_spd_system> m_system;
   std::unique_ptr<Spd_direct_solver> m_solver;
   double m_system_scale = 1, m_scaled_lambda = 0;
-  Block m_B;  // the right-hand side, then the solution
+  Row_block m_B;  // the right-hand side, then the solution (its columns past the third zero)
   bool m_factorized = false;
   std::vector<Index> m_pattern_outer, m_pattern_inner;  // of the analysed system
   bool m_try_preconditioned_cg = false;

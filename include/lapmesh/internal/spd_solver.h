@@ -102,9 +102,13 @@ public:
   /// A_FF = d_scale diag(d)_FF + s_scale S_FF, S with the pattern given at construction.
   void fill_matrix(const SpMat& S, double s_scale, const Eigen::VectorXd& d, double d_scale)
   {
+    fill_matrix(S.valuePtr(), s_scale, d, d_scale);
+  }
+  /// fill_matrix() from S's values alone, in the pattern given at construction.
+  void fill_matrix(const double* values, double s_scale, const Eigen::VectorXd& d, double d_scale)
+  {
     if(m_source.size() != std::size_t(m_A.nonZeros()))
       throw std::logic_error("Constrained_spd_system: fill_matrix() after release_fill_map()");
-    const double* values = S.valuePtr();
     double* a = m_A.valuePtr();
     const Index na = m_A.nonZeros();
     for(Index k = 0; k < na; ++k) a[k] = s_scale * values[m_source[k]];
@@ -117,9 +121,10 @@ public:
   void release_fill_map() { std::vector<Index>().swap(m_source); }
 
   /// B_F = d_scale diag(d)_FF X_F - A_FB X_B for A as in fill_matrix(): row i of B is the free
-  /// row of unknown i; X holds the current values, its fixed rows the constraints.
-  template <typename Values, typename Rhs>
-  void fill_rhs(const SpMat& S, double s_scale, const Eigen::VectorXd& d, double d_scale, const Values& X, Rhs& B,
+  /// row of unknown i; X holds the current values, its fixed rows the constraints. S: a
+  /// compressed sparse matrix or a map of one.
+  template <typename Sparse, typename Values, typename Rhs>
+  void fill_rhs(const Sparse& S, double s_scale, const Eigen::VectorXd& d, double d_scale, const Values& X, Rhs& B,
                 bool parallel) const
   {
     const double* values = S.valuePtr();
@@ -201,6 +206,20 @@ public:
     (void)entries;
 #endif
   }
+  /// The memory of the factor's values when it holds at least `count` of them, for a caller that
+  /// writes into it what the next factorize() reads no more; nullptr otherwise (no factor of
+  /// CHOLMOD's with values).
+  double* values_to_overwrite(std::size_t count)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(m_cholmod && !m_external.factor && m_chol.factor() && m_chol.factor()->xtype == CHOLMOD_REAL &&
+       std::size_t(m_chol.factor()->xsize) >= count)
+      return m_chol.values_to_overwrite();
+#endif
+    (void)count;
+    return nullptr;
+  }
+
   /// The fill-reducing ordering of the last analyze(): "amd", "metis", or "" (Eigen's
   /// SimplicialLDLT, which orders by AMD, or a user's solver).
   const char* ordering() const { return m_ordering; }
@@ -334,6 +353,36 @@ public:
     B = x;
     return m_ldlt.info() == Eigen::Success;
   }
+  /// The width of the rows that solve_rows_in_place() takes for `cols` right-hand sides: wider
+  /// where CHOLMOD's factor (after analyze_in_order()) is solved by lapmesh's supernodal kernels,
+  /// whose rows are padded.
+  std::size_t row_width(std::size_t cols) const
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(solves_rows_in_place(cols)) return supernodal_row_width(cols);
+#endif
+    return cols;
+  }
+  /// Solves A X = B in place for B held row by row: row i at rows + i * width, its first `cols`
+  /// values B's, the others (width from row_width(cols)) zero, as they stay. Where CHOLMOD's factor
+  /// is in the given order the supernodal kernels solve the rows as they lie: a solve adds no copy
+  /// of the block beside the factor. Through a column-major copy otherwise.
+  bool solve_rows_in_place(double* rows, Index n, std::size_t width, std::size_t cols)
+  {
+#ifdef LAPMESH_HAS_CHOLMOD
+    if(solves_rows_in_place(cols) && width == supernodal_row_width(cols)) {
+      Subnormals_flushed_scope flushed;
+      m_chol.solve_rows_in_place(rows, width);
+      return true;
+    }
+#endif
+    using Rows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    Eigen::Map<Rows> by_rows(rows, n, Index(width));
+    Eigen::MatrixXd B = by_rows.leftCols(Index(cols));
+    if(!solve_in_place(B)) return false;
+    by_rows.leftCols(Index(cols)) = B;
+    return true;
+  }
   /// Solves A X = B.
   template <typename Rhs, typename Solution>
   bool solve(const Rhs& B, Solution& X)
@@ -343,6 +392,12 @@ public:
   }
 
 private:
+#ifdef LAPMESH_HAS_CHOLMOD
+  bool solves_rows_in_place(std::size_t cols) const
+  {
+    return m_cholmod && !m_external.solve && m_chol.factor() && m_chol.in_given_order() && supernodal_kernels_fit(cols);
+  }
+#endif
   External m_external;
   std::string m_failure;
   bool m_cholmod = false;
