@@ -243,7 +243,6 @@ private:
     analyze_system(planned_factorizations);
     m_report.solver = m_solver->name();
     m_report.analysis_seconds += seconds_since(t0);
-    m_B.setZero(m_system->size(), Index(m_solver->row_width(3)));
     // Preconditioned CG is tried until it fails once: then the operator changes too fast for an
     // old factor, and refactorising directly is cheaper than failed CG runs followed by a
     // factorisation anyway.
@@ -340,17 +339,23 @@ private:
     bool solved = false;
     if(!m_factorized && m_try_preconditioned_cg && m_report.factorizations > 0) solved = preconditioned_solve();
     if(!solved) {
+      // The right-hand side reads the stiffness for the fixed vertices' terms alone, and
+      // factorize() may release it (or write over it): with fixed vertices it is filled first,
+      // otherwise after the factorisation, so that its block does not stand beside the factor's.
+      const bool rhs_first = !m_system->all_free();
       const auto t0 = Clock::now();
-      fill_rhs();  // before factorize(), which may release the stiffness
+      if(rhs_first) fill_rhs();
       m_report.solve_seconds += seconds_since(t0);
       if(is_last_operator(it)) release_topology();
       if(!m_factorized) factorize(it);
       const auto t1 = Clock::now();
+      if(!rhs_first) fill_rhs();
       if(!m_solver->solve_rows_in_place(m_B.data(), m_B.rows(), std::size_t(m_B.cols()), 3) || !m_B.allFinite())
         throw Numerical_error("the linear solve of the smoothing system failed at iteration " + std::to_string(it + 1));
       m_report.solve_seconds += seconds_since(t1);
     }
     m_system->scatter(m_B.leftCols<3>(), m_P);
+    Row_block().swap(m_B);  // not held beside the next step's assembly and factorisation
   }
 
   /// Rebuilds the operator (or only the mass, conformal flow) from the positions after `it` steps.
@@ -498,9 +503,10 @@ private:
     const double* values = m_stiffness_in_factor ? m_stiffness_in_factor : m_pencil.stiffness.valuePtr();
     m_system->fill_matrix(values, -m_scaled_lambda, m_pencil.mass, m_system_scale);
   }
-  /// M_FF P_F + lambda S_FB P_B, scaled as the matrix.
+  /// M_FF P_F + lambda S_FB P_B, scaled as the matrix, into m_B (made here, its padding zero).
   void fill_rhs()
   {
+    m_B.setZero(m_system->size(), Index(m_solver->row_width(3)));
     auto rhs = m_B.leftCols<3>();
     m_system->fill_rhs(stiffness(), -m_scaled_lambda, m_pencil.mass, m_system_scale, m_P, rhs, m_s.parallel);
   }

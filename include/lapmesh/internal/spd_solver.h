@@ -93,6 +93,8 @@ public:
   }
 
   Index size() const { return Index(m_A.rows()); }
+  /// Whether every unknown is free (no fixed one).
+  bool all_free() const { return size() == Index(m_free.size()); }
   /// The lower triangle of A_FF (the pattern is set at construction; values by fill_matrix()).
   const SpMat& matrix() const { return m_A; }
   bool is_free(Index i) const { return m_free[i] != 0; }
@@ -122,7 +124,8 @@ public:
 
   /// B_F = d_scale diag(d)_FF X_F - A_FB X_B for A as in fill_matrix(): row i of B is the free
   /// row of unknown i; X holds the current values, its fixed rows the constraints. S: a
-  /// compressed sparse matrix or a map of one.
+  /// compressed sparse matrix or a map of one, read only for the fixed unknowns' terms: not at
+  /// all when every unknown is free (all_free()).
   template <typename Sparse, typename Values, typename Rhs>
   void fill_rhs(const Sparse& S, double s_scale, const Eigen::VectorXd& d, double d_scale, const Values& X, Rhs& B,
                 bool parallel) const
@@ -130,11 +133,13 @@ public:
     const double* values = S.valuePtr();
     const Index* outer = S.outerIndexPtr();
     const Index* inner = S.innerIndexPtr();
+    const bool fixed_terms = !all_free();
     for_each_index(Index(m_free.size()), parallel, [&](Index i) {
       if(!m_free[i]) return;
       Eigen::Vector3d b = (d[i] * d_scale) * X.row(i).transpose();
-      for(Index k = outer[i]; k < outer[i + 1]; ++k)
-        if(!m_free[inner[k]]) b -= s_scale * values[k] * X.row(inner[k]).transpose();
+      if(fixed_terms)
+        for(Index k = outer[i]; k < outer[i + 1]; ++k)
+          if(!m_free[inner[k]]) b -= s_scale * values[k] * X.row(inner[k]).transpose();
       B.row(m_free_index[i]) = b.transpose();
     });
   }
