@@ -84,6 +84,30 @@ Eigen::MatrixXd dense_implicit_step(const Eigen::MatrixXd& S, const Eigen::Vecto
   return out;
 }
 
+// A soup as the smoothing engine's arrays (triangles, positions), each coordinate moved by a
+// uniform amount in [-amount, amount) drawn from `seed`.
+struct Engine_arrays
+{
+  lapmesh::internal::Index n = 0;
+  lapmesh::internal::Working_array<lapmesh::internal::Index> triangles;
+  lapmesh::internal::Positions positions;
+};
+Engine_arrays jittered_engine_arrays(lapmesh::Triangle_soup soup, double amount, unsigned seed)
+{
+  using lapmesh::internal::Index;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-amount, amount);
+  for(auto& p : soup.points)
+    for(double& x : p) x += jitter(rng);
+  Engine_arrays out;
+  out.n = Index(soup.points.size());
+  for(const auto& f : soup.triangles) out.triangles.insert(out.triangles.end(), f.begin(), f.end());
+  out.positions.resize(out.n, 3);
+  for(Index i = 0; i < out.n; ++i)
+    out.positions.row(i) = Eigen::RowVector3d(soup.points[i][0], soup.points[i][1], soup.points[i][2]);
+  return out;
+}
+
 lapmesh::Triangle_soup bumpy_patch(int n)
 {
   return lapmesh::height_field(n, [](double x, double y) { return 0.2 * std::sin(3 * x) * std::cos(2 * y); }, 0.3, 5);
@@ -164,16 +188,10 @@ TEST(Smoothing, TheFactorisationEmptiesTheCacheOfWorkingArraysFirst)
 TEST(Smoothing, TheLastFactorisationRunsWithoutTheCornerListsAndThePattern)
 {
   using namespace lapmesh::internal;
-  lapmesh::Triangle_soup soup = lapmesh::icosphere(3);
-  std::mt19937_64 rng(4);
-  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
-  for(auto& p : soup.points)
-    for(double& x : p) x += jitter(rng);
-  const Index n = Index(soup.points.size());
-  Working_array<Index> triangles;
-  for(const auto& f : soup.triangles) triangles.insert(triangles.end(), f.begin(), f.end());
-  Positions P0(n, 3);
-  for(Index i = 0; i < n; ++i) P0.row(i) = Eigen::RowVector3d(soup.points[i][0], soup.points[i][1], soup.points[i][2]);
+  const Engine_arrays sphere = jittered_engine_arrays(lapmesh::icosphere(3), 0.01, 4);
+  const Index n = sphere.n;
+  const Working_array<Index>& triangles = sphere.triangles;
+  const Positions& P0 = sphere.positions;
 
   struct Case { int iterations; bool fixed_operator, restore_volume; };
   for(const Case c : {Case{1, false, false}, Case{3, false, true}, Case{3, true, false}}) {
@@ -636,18 +654,11 @@ TEST(Smoothing, ALaterStepAssemblesIntoTheDeadFactor)
 {
   using namespace lapmesh::internal;
   ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
-  lapmesh::Triangle_soup soup = lapmesh::icosphere(5);
-  std::mt19937_64 rng(9);
-  std::uniform_real_distribution<double> jitter(-0.002, 0.002);
-  for(auto& p : soup.points)
-    for(double& x : p) x += jitter(rng);
-  const Index n = Index(soup.points.size());
-  Working_array<Index> triangles;
-  for(const auto& f : soup.triangles) triangles.insert(triangles.end(), f.begin(), f.end());
-  ASSERT_GE(soup.triangles.size() * 3 * sizeof(double), small_mapping_min_bytes);
-  Positions P0(n, 3);
-  for(Index i = 0; i < n; ++i) P0.row(i) = Eigen::RowVector3d(soup.points[i][0], soup.points[i][1], soup.points[i][2]);
-  const Mesh_topology t = build_topology(n, triangles);
+  const Engine_arrays sphere = jittered_engine_arrays(lapmesh::icosphere(5), 0.002, 9);
+  const Index n = sphere.n;
+  const Positions& P0 = sphere.positions;
+  ASSERT_GE(sphere.triangles.size() * sizeof(double), small_mapping_min_bytes);  // the cotangents, 3 per face
+  const Mesh_topology t = build_topology(n, sphere.triangles);
 
   Smoothing_settings s;
   s.lambda = 1e-3;
