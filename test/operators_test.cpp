@@ -334,10 +334,11 @@ void expect_uniform_paths_equal(const Graph& g, const std::string& what)
   int i = 0;
   for(auto v : vertices(g)) put(rows, v, i++);
   const auto fast = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform));
+  const Eigen::SparseMatrix<double> matrix = lapmesh::uniform_stiffness_matrix(g);  // without the pencil's mass
   const auto general = lapmesh::laplacian_pencil(g, LP::laplacian(lapmesh::Laplacian::uniform).vertex_index_map(rows));
   const Eigen::SparseMatrix<double>& edge_path = direct;
   const Eigen::SparseMatrix<double>& in_place = sorted_in_place;
-  for(const Eigen::SparseMatrix<double>* W : {&edge_path, &in_place, &fast.stiffness}) {
+  for(const Eigen::SparseMatrix<double>* W : {&edge_path, &in_place, &fast.stiffness, &matrix}) {
     ASSERT_EQ(W->rows(), general.stiffness.rows()) << what;
     ASSERT_EQ(W->nonZeros(), general.stiffness.nonZeros()) << what;
     ASSERT_TRUE(W->isCompressed() && general.stiffness.isCompressed()) << what;
@@ -398,6 +399,34 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   for(auto h : around) CGAL::Euler::remove_face(h, holes);
   ASSERT_TRUE(holes.has_garbage() && holes.is_removed(Mesh::Vertex_index(7)));
   expect_uniform_paths_equal(holes, "removed elements");
+}
+
+TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedLargeArraysBeforeItsMatrix)
+{
+  using lapmesh::internal::Mapping_cache;
+  using lapmesh::internal::Working_array;
+  ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
+  lapmesh::release_working_memory();
+  const Mesh m = to_mesh(lapmesh::icosphere(4));
+  const Eigen::SparseMatrix<double> reference =
+    lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform)).stiffness;
+  // Another call's freed large array (three huge pages), cached for a call that needs it.
+  { Working_array<double> other_calls((std::size_t(6) << 20) / sizeof(double)); }
+  ASSERT_EQ(Mapping_cache::large_arrays().cached_bytes(), std::size_t(6) << 20);
+  const Eigen::SparseMatrix<double> W = lapmesh::uniform_stiffness_matrix(m);
+  EXPECT_EQ(Mapping_cache::large_arrays().cached_bytes(), 0u) << "it lay beside the matrix";
+  ASSERT_EQ(W.nonZeros(), reference.nonZeros());
+  EXPECT_EQ(Eigen::MatrixXd(W - reference).cwiseAbs().maxCoeff(), 0.0);
+  // The control: with a vertex_index_map the general path assembles, which hands back its own
+  // inputs only, and another call's cached mapping stays.
+  { Working_array<double> other_calls((std::size_t(6) << 20) / sizeof(double)); }
+  auto rows = get(CGAL::dynamic_vertex_property_t<int>(), m);
+  int i = 0;
+  for(auto v : vertices(m)) put(rows, v, i++);
+  const Eigen::SparseMatrix<double> welded = lapmesh::uniform_stiffness_matrix(m, CGAL::parameters::vertex_index_map(rows));
+  EXPECT_EQ(Mapping_cache::large_arrays().cached_bytes(), std::size_t(6) << 20);
+  EXPECT_EQ(Eigen::MatrixXd(welded - reference).cwiseAbs().maxCoeff(), 0.0);
+  lapmesh::release_working_memory();
 }
 
 TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)

@@ -95,6 +95,9 @@ Eigen::SparseMatrix<double> uniform_stiffness_matrix(const TriangleMesh& tm,
                                                      const NamedParameters& np = CGAL::parameters::default_values())
 {
   Eigen::SparseMatrix<double> stiffness;  // as in cotangent_stiffness_matrix()
+  // Off the graph's edges as in laplacian_pencil(), without the degrees that the pencil's mass holds.
+  if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
+    if(internal::uniform_stiffness_on_default_rows(tm, np, stiffness)) return stiffness;
   laplacian_pencil(tm, parameters::laplacian(Laplacian::uniform, np)).stiffness.swap(stiffness);
   return stiffness;
 }

@@ -138,6 +138,13 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     if(std::size_t(outer[r]) + std::size_t(degree) + 1 > std::size_t(std::numeric_limits<Index>::max())) return false;
     outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
   }
+  // The counting sort's array is taken before W's, which the cache of working arrays cannot
+  // serve: the cached mappings of large arrays that this call has not taken (another call's)
+  // go back to the system rather than lie beside W.
+  const bool sorted_in_place = std::size_t(outer[n]) >= sorted_in_place_from;
+  Working_array<Index> by_edge;
+  if(!sorted_in_place) by_edge.resize(std::size_t(outer[n]));
+  release_cached_large_arrays();
   W.resizeNonZeros(outer[n]);
   prepare_for_writing(W);
   Index* inner = W.innerIndexPtr();
@@ -150,7 +157,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
       rows[fill[std::size_t(ends[k + 1])]++] = ends[k];
     }
   };
-  if(std::size_t(outer[n]) >= sorted_in_place_from) {
+  if(sorted_in_place) {
     // Each row sorted where it lies (finish_uniform_row()).
     scatter(inner);
     for(Index r = 0; r < n; ++r)
@@ -160,8 +167,6 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   }
   // Then every row again in ascending order: row c hands c to its neighbours' rows at step c, a
   // counting sort by the other end.
-  Working_array<Index> by_edge;
-  by_edge.resize(std::size_t(outer[n]));
   scatter(by_edge.data());
   std::copy(outer, outer + n, fill.begin());
   for(Index c = 0; c < n; ++c) {
@@ -176,18 +181,26 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   return true;
 }
 
-/// The uniform pencil (W, the degrees) of `tm` by uniform_stiffness_from_edges() on the
-/// default vertex numbering; false where that declines. Named parameters: vertex_point_map.
-/// A vertex in no face gets mass 0, as on the general path. On false `out` is left empty.
+/// W of `tm` by uniform_stiffness_from_edges() on the default vertex numbering; false, with `W`
+/// left empty, where that declines. Named parameters: vertex_point_map.
 template <typename TriangleMesh, typename NamedParameters>
-bool uniform_pencil_from_edges(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
+bool uniform_stiffness_on_default_rows(const TriangleMesh& tm, const NamedParameters& np, Eigen::SparseMatrix<double>& W)
 {
   const auto vpm = CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_point),
                                                       get_const_property_map(CGAL::vertex_point, tm));
-  if(!with_default_vertex_rows(tm, [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, out.stiffness); })) {
-    out.stiffness = Eigen::SparseMatrix<double>();  // no half-written pattern for the general path
+  if(!with_default_vertex_rows(tm, [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, W); })) {
+    release(W);  // no half-written pattern for the general path
     return false;
   }
+  return true;
+}
+
+/// The uniform pencil (W, the degrees) of `tm` by uniform_stiffness_on_default_rows(); false where that
+/// declines. A vertex in no face gets mass 0, as on the general path. On false `out` is left empty.
+template <typename TriangleMesh, typename NamedParameters>
+bool uniform_pencil_from_edges(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
+{
+  if(!uniform_stiffness_on_default_rows(tm, np, out.stiffness)) return false;
   const Index n = Index(out.stiffness.rows());
   const Index* outer = out.stiffness.outerIndexPtr();
   out.mass.resize(n);
