@@ -26,6 +26,34 @@
 
 namespace lapmesh {
 
+namespace internal {
+
+/// laplacian_pencil() through the extraction (the general path), into `out`.
+template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
+void assemble_extracted_pencil(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
+{
+  auto mesh =
+    internal::extract_mesh(tm, np, internal::Topology_detail::pattern, internal::is_parallel<ConcurrencyTag>());
+  // What the matrix's fill does not read goes back to the system before the matrix is allocated,
+  // which the cache of working arrays could not serve.
+  const auto release_geometry_inputs = [&] {
+    mesh.positions = internal::Positions();
+    internal::release_to_system(mesh.topology.triangles);
+    mesh.topology.release_corner_lists();
+    internal::release_to_system(mesh.vertices);
+    internal::release_to_system(mesh.vertex_rows);
+  };
+  internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
+                            internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
+                            internal::choose_mollification(np), release_geometry_inputs);
+  if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
+    mesh.move_to_rows(out.stiffness);
+    out.mass = mesh.to_rows(out.mass, 0.0);
+  }
+}
+
+} // namespace internal
+
 /// \ingroup PkgLapmeshOperators
 /// @brief assembles the stiffness matrix and the lumped mass of a Laplacian of `tm`.
 ///
@@ -53,27 +81,9 @@ Laplacian_pencil laplacian_pencil(const TriangleMesh& tm,
   Laplacian_pencil out;
   // The uniform operator needs no geometry: read straight off the graph's edges, unless
   // a vertex_index_map may weld vertices.
-  if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
-    if(internal::choose_laplacian(np) == Laplacian::uniform && internal::uniform_pencil_from_edges(tm, np, out))
-      return out;
-  auto mesh =
-    internal::extract_mesh(tm, np, internal::Topology_detail::pattern, internal::is_parallel<ConcurrencyTag>());
-  // What the matrix's fill does not read goes back to the system before the matrix is allocated,
-  // which the cache of working arrays could not serve.
-  const auto release_geometry_inputs = [&] {
-    mesh.positions = internal::Positions();
-    internal::release_to_system(mesh.topology.triangles);
-    mesh.topology.release_corner_lists();
-    internal::release_to_system(mesh.vertices);
-    internal::release_to_system(mesh.vertex_rows);
-  };
-  internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
-                            internal::choose_vertex_area(np), internal::is_parallel<ConcurrencyTag>(), out,
-                            internal::choose_mollification(np), release_geometry_inputs);
-  if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
-    mesh.move_to_rows(out.stiffness);
-    out.mass = mesh.to_rows(out.mass, 0.0);
-  }
+  if(internal::choose_laplacian(np) == Laplacian::uniform && internal::uniform_pencil_from_edges(tm, np, out))
+    return out;
+  internal::assemble_extracted_pencil<ConcurrencyTag>(tm, np, out);
   return out;
 }
 
@@ -95,10 +105,12 @@ Eigen::SparseMatrix<double> uniform_stiffness_matrix(const TriangleMesh& tm,
                                                      const NamedParameters& np = CGAL::parameters::default_values())
 {
   Eigen::SparseMatrix<double> stiffness;  // as in cotangent_stiffness_matrix()
-  // Off the graph's edges as in laplacian_pencil(), without the degrees that the pencil's mass holds.
-  if constexpr(CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
-    if(internal::uniform_stiffness_on_default_rows(tm, np, stiffness)) return stiffness;
-  laplacian_pencil(tm, parameters::laplacian(Laplacian::uniform, np)).stiffness.swap(stiffness);
+  // Off the graph's edges as in laplacian_pencil(), without the degrees that the pencil's mass
+  // holds; where that declines, the general path alone (not the edges a second time).
+  if(internal::uniform_stiffness_on_default_rows(tm, np, stiffness)) return stiffness;
+  Laplacian_pencil pencil;
+  internal::assemble_extracted_pencil<CGAL::Sequential_tag>(tm, parameters::laplacian(Laplacian::uniform, np), pencil);
+  pencil.stiffness.swap(stiffness);
   return stiffness;
 }
 

@@ -182,10 +182,13 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
 }
 
 /// W of `tm` by uniform_stiffness_from_edges() on the default vertex numbering; false, with `W`
-/// left empty, where that declines. Named parameters: vertex_point_map.
+/// left empty, where that declines or a vertex_index_map (which may weld vertices) is given.
+/// Named parameters: vertex_point_map.
 template <typename TriangleMesh, typename NamedParameters>
 bool uniform_stiffness_on_default_rows(const TriangleMesh& tm, const NamedParameters& np, Eigen::SparseMatrix<double>& W)
 {
+  if constexpr(!CGAL::parameters::is_default_parameter<NamedParameters, CGAL::internal_np::vertex_index_t>::value)
+    return false;
   const auto vpm = CGAL::parameters::choose_parameter(CGAL::parameters::get_parameter(np, CGAL::internal_np::vertex_point),
                                                       get_const_property_map(CGAL::vertex_point, tm));
   if(!with_default_vertex_rows(tm, [&](auto rows) { return uniform_stiffness_from_edges(tm, rows, vpm, W); })) {
