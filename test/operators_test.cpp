@@ -999,6 +999,137 @@ TEST(Operators, CornerTopologyEqualsTheFullOne)
   }
 }
 
+namespace {
+
+/// Positions for the synthetic triangle lists of CotangentRowsEqualTheFilledPattern: `ring`
+/// vertices on a circle after `hubs` at (0, 0, +-1).
+lapmesh::internal::Positions circle_with_hubs(int hubs, int ring)
+{
+  lapmesh::internal::Positions P(hubs + ring, 3);
+  for(int h = 0; h < hubs; ++h) P.row(h) << 0.1 * h, 0.0, h == 0 ? 1.0 : -1.0;
+  for(int k = 0; k < ring; ++k) {
+    const double a = 2 * M_PI * k / (ring + 1);  // an open fan's last face is not flat
+    P.row(hubs + k) << std::cos(a), std::sin(a), 0.05 * (k % 3);
+  }
+  return P;
+}
+
+lapmesh::internal::Positions soup_positions(const lapmesh::Triangle_soup& soup)
+{
+  lapmesh::internal::Positions P(Eigen::Index(soup.points.size()), 3);
+  for(std::size_t i = 0; i < soup.points.size(); ++i)
+    P.row(Eigen::Index(i)) << soup.points[i][0], soup.points[i][1], soup.points[i][2];
+  return P;
+}
+
+} // namespace
+
+// The serial cotangent pencil builds the pattern's rows with their values straight into the
+// matrix, on the corner incidence alone. It must equal, entry for entry and bit for bit, the
+// pattern's topology filled from its slots, whatever the bound on the entries the caller gives:
+// exact, generous (the matrix then holds fewer than it has room for), unknown, or too small
+// (the rows are counted, then written again).
+TEST(Operators, CotangentRowsEqualTheFilledPattern)
+{
+  using lapmesh::internal::build_corner_incidence;
+  using lapmesh::internal::build_topology;
+  using lapmesh::internal::Positions;
+  struct Case
+  {
+    std::string name;
+    int n;
+    Working_array<int> tri;
+    Positions P;
+  };
+  std::vector<Case> cases;
+  for(const auto& [name, soup] : {std::make_pair("torus", lapmesh::torus(12, 8)),
+                                  std::make_pair("plane patch", lapmesh::plane_patch(7, 0.3)),
+                                  std::make_pair("icosphere", lapmesh::icosphere(2))}) {
+    auto [n, tri] = flat(soup);
+    cases.push_back({name, n, tri, soup_positions(soup)});
+  }
+  Working_array<int> double_cone, open_fan;
+  for(int i = 0; i < 40; ++i) {  // hubs of 40 corners: rows longer than a short sort's
+    const int j = 2 + i, k = 2 + (i + 1) % 40;
+    double_cone.insert(double_cone.end(), {0, j, k, 1, k, j});
+    if(i < 39) open_fan.insert(open_fan.end(), {0, 1 + i, 2 + i});
+  }
+  cases.push_back({"double cone", 42, double_cone, circle_with_hubs(2, 40)});
+  cases.push_back({"open fan", 41, open_fan, circle_with_hubs(1, 40)});
+  cases.push_back({"two triangles sharing a vertex", 5, {0, 1, 2, 0, 3, 4}, circle_with_hubs(1, 4)});
+  for(const auto& c : cases)
+    for(const auto area :
+        {lapmesh::Vertex_area::barycentric, lapmesh::Vertex_area::voronoi, lapmesh::Vertex_area::mixed}) {
+      const std::string what = c.name + ", " + lapmesh::to_string(area);
+      lapmesh::Laplacian_pencil filled;
+      const auto t = build_topology(c.n, c.tri);
+      lapmesh::internal::assemble_pencil(t, c.P, lapmesh::Laplacian::cotangent, area, false, filled);
+      const std::size_t exact = std::size_t(filled.stiffness.nonZeros());
+      for(const std::size_t bound : {exact, exact + 7, std::size_t(0), std::size_t(c.n)}) {
+        lapmesh::Laplacian_pencil by_rows;
+        lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P, area, bound,
+                                                             by_rows);
+        const std::string with = what + ", bound " + std::to_string(bound);
+        ASSERT_EQ(by_rows.stiffness.rows(), c.n) << with;
+        ASSERT_EQ(std::size_t(by_rows.stiffness.nonZeros()), exact) << with;
+        EXPECT_TRUE(by_rows.stiffness.isCompressed()) << with;
+        EXPECT_TRUE(std::equal(filled.stiffness.outerIndexPtr(), filled.stiffness.outerIndexPtr() + c.n + 1,
+                               by_rows.stiffness.outerIndexPtr()))
+          << with;
+        EXPECT_TRUE(std::equal(filled.stiffness.innerIndexPtr(), filled.stiffness.innerIndexPtr() + exact,
+                               by_rows.stiffness.innerIndexPtr()))
+          << with;
+        EXPECT_TRUE(std::equal(filled.stiffness.valuePtr(), filled.stiffness.valuePtr() + exact,
+                               by_rows.stiffness.valuePtr()))
+          << with;
+        EXPECT_TRUE(by_rows.mass == filled.mass) << with;
+      }
+    }
+  // A non-manifold edge (a third face on the double cone's edge 0-2) is named as the pattern names it.
+  auto fin = double_cone;
+  fin.insert(fin.end(), {0, 2, 42});
+  Positions P(43, 3);
+  P << circle_with_hubs(2, 40), Eigen::RowVector3d(0.5, 0.5, 2.0);
+  const auto message = [&](const auto& assemble) -> std::string {
+    try {
+      assemble();
+    } catch(const lapmesh::Mesh_error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  lapmesh::Laplacian_pencil out;
+  const std::string by_pattern = message([&] {
+    lapmesh::internal::assemble_pencil(build_topology(43, fin), P, lapmesh::Laplacian::cotangent,
+                                       lapmesh::Vertex_area::mixed, false, out);
+  });
+  EXPECT_NE(by_pattern.find("is non-manifold"), std::string::npos) << by_pattern;
+  EXPECT_EQ(message([&] {
+              lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(43, fin), P,
+                                                                   lapmesh::Vertex_area::mixed, 0, out);
+            }),
+            by_pattern);
+}
+
+// The bound on the entries comes from the graph's edges, which may be more than its faces'
+// (an edge of no face): the matrix is the same, its spare room unused.
+TEST(Operators, ThePencilOfAGraphWithAnEdgeOfNoFaceIsThatOfItsFaces)
+{
+  const Mesh m = to_mesh(lapmesh::torus(10, 6));
+  Mesh with_edge = m;
+  const auto a = with_edge.add_vertex(Point(5, 5, 5)), b = with_edge.add_vertex(Point(6, 5, 5));
+  CGAL::Euler::add_edge(a, b, with_edge);
+  ASSERT_EQ(num_edges(with_edge), num_edges(m) + 1);
+  const auto p = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const auto q = lapmesh::laplacian_pencil(with_edge, LP::vertex_area(lapmesh::Vertex_area::mixed));
+  const Eigen::Index n = p.stiffness.rows();
+  ASSERT_EQ(q.stiffness.rows(), n + 2);
+  EXPECT_EQ(q.stiffness.nonZeros(), p.stiffness.nonZeros());
+  EXPECT_TRUE(Eigen::MatrixXd(q.stiffness.topLeftCorner(n, n)) == Eigen::MatrixXd(p.stiffness));
+  EXPECT_TRUE(q.mass.head(n) == p.mass);
+  EXPECT_TRUE(q.mass.tail(2).isZero(0.0));
+}
+
 TEST(Operators, PencilsMoveWithoutCopyingTheirStorage)
 {
   // Eigen 3.4's sparse matrix copies where it is moved; a pencil must not.
@@ -1275,7 +1406,7 @@ TEST(Operators, WorkingArraysUnder4MiBAreKeptForTheNextArrayOfTheirExactSize)
 // allocates the matrix: with the cache emptied first, what it leaves cached afterwards is the
 // rest of the topology (the pattern and its corner slots) and the cotangents, not the arrays of
 // one entry per corner or per face vertex. (Arrays under 4 MiB are kept all the same, apart.)
-TEST(Operators, ThePencilHandsBackTheGeometryInputsBeforeItAllocatesTheMatrix)
+TEST(Operators, ThePencilKeepsNoPatternSlotsBesideItsMatrix)
 {
   ASSERT_TRUE(lapmesh::huge_pages_enabled()) << "the test runs with huge pages on (LAPMESH_HUGE_PAGES unset)";
   const Mesh m = to_mesh(lapmesh::torus(800, 400));  // 320k vertices: every corner array over 4 MiB
@@ -1284,10 +1415,11 @@ TEST(Operators, ThePencilHandsBackTheGeometryInputsBeforeItAllocatesTheMatrix)
   lapmesh::release_working_memory();
   const auto pencil = lapmesh::laplacian_pencil(m, LP::vertex_area(lapmesh::Vertex_area::mixed));
   ASSERT_EQ(std::size_t(pencil.stiffness.nonZeros()), nonzeros);
-  // slot_corners (two corners per slot), inner (one index per slot), the cotangents (one per
-  // corner); the outer indices and the diagonal slots are under 4 MiB, in the other cache.
-  const std::size_t expected = whole_huge_pages(nonzeros * 2 * sizeof(int)) +
-                               whole_huge_pages(nonzeros * sizeof(int)) + whole_huge_pages(corners * sizeof(double));
+  // The large working arrays of the call, cached when it ends: the triangles and the corner lists
+  // (one index per corner each) and the cotangents (one per corner). The pattern's slots (two
+  // corners per entry) and a second copy of its indices would be among them.
+  const std::size_t expected =
+    2 * whole_huge_pages(corners * sizeof(int)) + whole_huge_pages(corners * sizeof(double));
   EXPECT_EQ(lapmesh::internal::Mapping_cache::large_arrays().cached_bytes(), expected);
   lapmesh::release_working_memory();
 }

@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -470,6 +471,72 @@ inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geomet
     values[t.diagonal_slot[i]] = diagonal;
   });
 }
+
+/// The writer of build_pattern_rows() that puts the cotangent stiffness straight into a matrix
+/// sized for at most `capacity` entries, each row appended after the one before (serially), so
+/// that neither the pattern's corner slots nor a second copy of its indices lies beside the
+/// matrix. Each entry is the value fill_cotangent_stiffness() writes there, the diagonal added up
+/// in the same order. Rows that would overrun the capacity are only counted (overran()); `size`
+/// is then the number of entries the matrix needs.
+class Cotangent_rows : public Pattern_row_counts
+{
+public:
+  Cotangent_rows(const double* cot, Eigen::SparseMatrix<double>& S)
+      : m_cot(cot), m_outer(S.outerIndexPtr()), m_inner(S.innerIndexPtr()), m_values(S.valuePtr()),
+        m_capacity(std::size_t(S.data().size()))
+  {
+    m_outer[0] = 0;
+  }
+
+  struct Entries
+  {
+    Index* inner;
+    double* values;
+    const double* cot;
+    void set(Index slot, Index j, std::array<Index, 2> c) const
+    {
+      inner[slot] = j;
+      values[slot] = 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
+    }
+  };
+
+  Entries append(std::size_t count)
+  {
+    const std::size_t at = size;
+    size += count;
+    if(size <= m_capacity && !m_overran) return {m_inner + at, m_values + at, m_cot};
+    m_overran = true;
+    if(m_scratch_inner.size() < count) {
+      m_scratch_inner.resize(count);
+      m_scratch_values.resize(count);
+    }
+    return {m_scratch_inner.data(), m_scratch_values.data(), m_cot};
+  }
+  void push_back(Index j, std::array<Index, 2> corners) { append(1).set(0, j, corners); }
+  void end_row(Index i, Index diagonal)
+  {
+    if(m_overran) return;
+    double sum = 0;
+    for(Index s = m_outer[i]; s < static_cast<Index>(size); ++s)
+      if(s != diagonal) sum -= m_values[s];
+    m_values[diagonal] = sum;
+    m_outer[i + 1] = static_cast<Index>(size);
+  }
+  void mark_boundary(Index) {}
+  /// The cotangents of corner c's face, which the row of c's vertex reads.
+  void prefetch_corner(Index c) const { prefetch(m_cot + c); }
+  bool overran() const { return m_overran; }
+
+private:
+  const double* m_cot;
+  Index* m_outer;
+  Index* m_inner;
+  double* m_values;
+  std::size_t m_capacity;
+  bool m_overran = false;
+  std::vector<Index> m_scratch_inner;
+  std::vector<double> m_scratch_values;
+};
 
 /// Writes the uniform stiffness W = A - D into the values of the pattern of `t`.
 inline void fill_uniform_stiffness(const Mesh_topology& t, double* values, bool parallel)

@@ -44,6 +44,42 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
   fill_cotangent_stiffness(t, g, stiffness_values(), parallel);
 }
 
+/// Assembles the cotangent (S, M) serially on a topology of corner incidence alone
+/// (build_corner_incidence(): no pattern): the corner geometry first, then the pattern's rows
+/// built with their values straight into the matrix (Cotangent_rows), which finds the edges and
+/// any non-manifold one as it goes. At its peak the call holds the triangles, the corner lists,
+/// the cotangents and the result, not the pattern's slots beside them. `max_nonzeros`: the most
+/// entries the matrix can need (the vertices plus twice the edges that the caller's graph
+/// holds), or 0 where unknown; a matrix sized too small is written again at its exact size.
+/// `after_geometry()` as in assemble_pencil(), except that the triangles and the corner lists
+/// are read after it.
+template <typename AfterGeometry = void (*)()>
+void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
+                                       std::size_t max_nonzeros, Laplacian_pencil& out,
+                                       const AfterGeometry& after_geometry = [] {})
+{
+  Corner_geometry g;
+  compute_corner_geometry(t, P, Corner_request{area, false, false}, false, g);
+  out.mass = std::move(g.vertex_area);
+  after_geometry();
+  const Index n = t.num_vertices;
+  const auto write_rows = [&](std::size_t capacity) {
+    out.stiffness.resize(n, n);
+    out.stiffness.resizeNonZeros(static_cast<Index>(capacity));
+    prepare_for_writing(out.stiffness);
+    Cotangent_rows rows(g.cot_values(), out.stiffness);
+    build_pattern_rows(t, 0, n, rows);
+    return rows;
+  };
+  // A closed manifold mesh has as many neighbours per vertex as corners: the guess where the
+  // caller knows no bound.
+  Cotangent_rows rows = write_rows(max_nonzeros > 0 ? max_nonzeros : std::size_t(n) + t.vertex_corners.size());
+  if(rows.overran()) rows = write_rows(rows.size);
+  if(!rows.manifold)  // the pattern's topology names the edge
+    require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
+  out.stiffness.data().resize(static_cast<Index>(rows.size));  // where the graph had more edges than its faces
+}
+
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
 /// matrix with t's pattern (repeated assembly while smoothing) only the values are written;
 /// the intrinsic Delaunay Laplacian has a pattern of its own (its flipped edges), rebuilt

@@ -464,10 +464,30 @@ Working_array<Index> renumber_for_locality(Extracted_arrays<TriangleMesh>& array
   return triangles;
 }
 
+template <typename Graph, typename = void>
+struct Counts_its_edges : std::false_type
+{};
+template <typename Graph>
+struct Counts_its_edges<Graph, std::void_t<decltype(num_edges(std::declval<const Graph&>()))>> : std::true_type
+{};
+
+/// The number of edges of `tm` where its type counts them (num_edges() of an EdgeListGraph),
+/// else 0.
+template <typename TriangleMesh>
+std::size_t edge_count(const TriangleMesh& tm)
+{
+  if constexpr(Counts_its_edges<TriangleMesh>::value)
+    return std::size_t(num_edges(tm));
+  else
+    return 0;
+}
+
 /// How much of the topology an extraction builds: the sparsity pattern and its edge slots
-/// (every operator), or the corners alone (build_corner_topology(): angles, areas and their
-/// gathers).
-enum class Topology_detail { pattern, corners };
+/// (every operator), the corners alone (build_corner_topology(): angles, areas and their
+/// gathers), or only the triangles and each vertex's corners (build_corner_incidence(): no
+/// boundary flags, no edge counts, not checked for manifold edges), for a caller that finds
+/// those as it builds the pattern's rows itself (assemble_cotangent_pencil_by_rows()).
+enum class Topology_detail { pattern, corners, incidence };
 
 /// The order of a corners-only extraction's vertices and faces.
 enum class Vertex_order {
@@ -487,8 +507,11 @@ Extracted_mesh<TriangleMesh> extract_mesh(const TriangleMesh& tm, const NamedPar
                                           Vertex_order order = Vertex_order::as_read)
 {
   const auto topology = [detail, parallel](Index n, Working_array<Index>&& triangles, Corner_incidence&& incidence) {
-    return detail == Topology_detail::pattern ? build_topology(n, std::move(triangles), parallel, std::move(incidence))
-                                              : build_corner_topology(n, std::move(triangles), parallel, std::move(incidence));
+    switch(detail) {
+      case Topology_detail::pattern: return build_topology(n, std::move(triangles), parallel, std::move(incidence));
+      case Topology_detail::corners: return build_corner_topology(n, std::move(triangles), parallel, std::move(incidence));
+      default: return build_corner_incidence(n, std::move(triangles), parallel, std::move(incidence));
+    }
   };
   Extracted_arrays<TriangleMesh> arrays = extract_arrays(tm, np, parallel);
   Extracted_mesh<TriangleMesh> out;

@@ -387,29 +387,56 @@ constexpr Index corner_prefetch_distance = 3;
 /// the part's set-up, few enough to balance the threads' load.
 constexpr Index vertices_per_part = 16384;
 
+/// What build_pattern_rows() counts while it writes rows, whatever they are written into: the
+/// entries written, the edges (each at its lower end) and the non-manifold edges' fans.
+struct Pattern_row_counts
+{
+  std::size_t size = 0;
+  std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
+  Index num_edges = 0;
+  Index num_boundary_edges = 0;
+  bool manifold = true;
+};
+
 /// Rows of the one-ring pattern built by one part of build_topology(), with slot numbers that
 /// start at zero. They are written into a slice of the topology's arrays reserved for the part
 /// (write_into()), which spares the copy of joining the parts, and the rows that do not fit in
-/// it into arrays of the part's own (all of them without a slice).
-struct Pattern_rows
+/// it into arrays of the part's own (all of them without a slice). Each row's end and diagonal
+/// slot go to the topology's `outer` and `diagonal_slot`, its boundary flag to `on_boundary`.
+struct Pattern_rows : Pattern_row_counts
 {
+  explicit Pattern_rows(Mesh_topology& t) : outer(t.outer.data()), diagonal_slot(t.diagonal_slot.data()),
+                                            on_boundary(t.on_boundary.data()) {}
+  Index* outer;
+  Index* diagonal_slot;
+  char* on_boundary;
   Index* slice_inner = nullptr;
   std::array<Index, 2>* slice_slot_corners = nullptr;
   std::size_t slice_capacity = 0;
   std::size_t in_slice = 0;  // the first in_slice entries are in the slice, the others in own_*
   Working_array<Index> own_inner;
   Working_array<std::array<Index, 2>> own_slot_corners;
-  std::size_t size = 0;
-  std::vector<Index> fan_slot, fan_begin{0}, fan_corners;
-  Index num_edges = 0;
-  Index num_boundary_edges = 0;
-  bool manifold = true;
 
   struct Entries
   {
     Index* inner;
     std::array<Index, 2>* slot_corners;
+    /// Entry `slot` of the appended ones: the neighbour j and the corners opposite i->j, j->i.
+    void set(Index slot, Index j, std::array<Index, 2> corners) const
+    {
+      inner[slot] = j;
+      slot_corners[slot] = corners;
+    }
   };
+
+  /// Row i ends at the current size; its diagonal is at slot `diagonal`.
+  void end_row(Index i, Index diagonal)
+  {
+    outer[i + 1] = static_cast<Index>(size);
+    diagonal_slot[i] = diagonal;
+  }
+  void mark_boundary(Index i) { on_boundary[i] = 1; }
+  void prefetch_corner(Index) const {}
 
   /// Rows go to the `count` entries at `inner` and `slot_corners` until they are full.
   void write_into(Index* inner, std::array<Index, 2>* slot_corners, std::size_t count)
@@ -474,9 +501,8 @@ struct Pattern_rows
 /// its d <= Width corners) and returns true; otherwise returns false with `rows` unchanged.
 /// The same row as the general path of build_pattern_rows(), without its sort: each
 /// neighbour's place is the number of smaller ones, counted over a fixed width with no branch.
-template <int Width>
-bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index i, Pattern_rows& rows,
-                          Index& diagonal_slot)
+template <int Width, typename Rows>
+bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index i, Rows& rows)
 {
   static_assert(Width < 32, "a set of corners is a 32-bit mask");
   constexpr Index none = std::numeric_limits<Index>::max();  // above every vertex: counts as no smaller one
@@ -513,23 +539,19 @@ bool interior_pattern_row(const Index* tri, const Index* corners, Index d, Index
   for(int a = 0; a < Width; ++a) below += out_vertex[a] < i;
   const std::size_t at = rows.size;
   const auto entries = rows.append(std::size_t(d) + 1);
-  Index* inner = entries.inner;
-  std::array<Index, 2>* slots = entries.slot_corners;
-  for(Index k = 0; k < d; ++k) {
-    const Index slot = k + (k >= below);
-    inner[slot] = neighbour[k];
-    slots[slot] = {side0[k], side1[k]};
-  }
-  inner[below] = i;
-  slots[below] = {-1, -1};
-  diagonal_slot = static_cast<Index>(at) + below;
+  for(Index k = 0; k < d; ++k) entries.set(k + (k >= below), neighbour[k], {side0[k], side1[k]});
+  entries.set(below, i, {-1, -1});
   rows.num_edges += d - below;
+  rows.end_row(i, static_cast<Index>(at) + below);
   return true;
 }
 
-/// Builds rows [first, last) of t's pattern into `rows`; writes t.outer[i + 1] and
-/// t.diagonal_slot[i] relative to the part's first slot, and t.on_boundary[i].
-inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Pattern_rows& rows)
+/// Builds rows [first, last) of t's pattern into `rows` (Pattern_rows, or another writer with
+/// its members): each row's entries with the corners opposite each of its edges' halfedges,
+/// then its end and diagonal slot, relative to the part's first slot (end_row()), and whether
+/// i is on the boundary (mark_boundary()).
+template <typename Rows>
+void build_pattern_rows(const Mesh_topology& t, Index first, Index last, Rows& rows)
 {
   const Working_array<Index>& tri = t.triangles;
   // Each incident corner of i contributes two halfedges: i->q (its face's halfedge leaving
@@ -537,18 +559,17 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
   // (neighbour << 33 | side << 32 | corner) so that sorting them as integers orders them by
   // neighbour, then side.
   std::vector<std::uint64_t> ring;
-  if(!rows.slice_inner) rows.reserve(7 * std::size_t(last - first));
   for(Index i = first; i < last; ++i) {
     if(i + corner_prefetch_distance < last)
-      for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k)
+      for(Index k = t.corner_begin[i + corner_prefetch_distance]; k < t.corner_begin[i + corner_prefetch_distance + 1]; ++k) {
         prefetch(&tri[t.vertex_corners[k]]);
+        rows.prefetch_corner(t.vertex_corners[k]);
+      }
     const Index degree = t.corner_begin[i + 1] - t.corner_begin[i];
     const Index* corners = &t.vertex_corners[t.corner_begin[i]];
-    if(degree <= 8 ? interior_pattern_row<8>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])
-                   : degree <= 16 && interior_pattern_row<16>(tri.data(), corners, degree, i, rows, t.diagonal_slot[i])) {
-      t.outer[i + 1] = static_cast<Index>(rows.size);
+    if(degree <= 8 ? interior_pattern_row<8>(tri.data(), corners, degree, i, rows)
+                   : degree <= 16 && interior_pattern_row<16>(tri.data(), corners, degree, i, rows))
       continue;
-    }
     // A boundary vertex, a non-manifold edge or more than 16 corners: sort the halfedges.
     ring.clear();
     for(Index k = t.corner_begin[i]; k < t.corner_begin[i + 1]; ++k) {
@@ -558,15 +579,14 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
       ring.push_back(std::uint64_t(tri[cr]) << 33 | std::uint64_t(1) << 32 | std::uint64_t(cq));
     }
     sort_row(ring.data(), ring.size());
-    bool diagonal_done = false;
+    Index diagonal = -1;
     auto emit_diagonal = [&] {
-      t.diagonal_slot[i] = static_cast<Index>(rows.size);
+      diagonal = static_cast<Index>(rows.size);
       rows.push_back(i, {-1, -1});
-      diagonal_done = true;
     };
     for(std::size_t k = 0; k < ring.size();) {
       const Index j = static_cast<Index>(ring[k] >> 33);
-      if(!diagonal_done && j > i) emit_diagonal();
+      if(diagonal < 0 && j > i) emit_diagonal();
       std::array<Index, 2> corners = {-1, -1};
       const std::size_t first_key = k;
       bool fan = false;
@@ -588,14 +608,14 @@ inline void build_pattern_rows(Mesh_topology& t, Index first, Index last, Patter
         }
       }
       if(corners[0] == -1 || corners[1] == -1) {
-        t.on_boundary[i] = 1;
+        rows.mark_boundary(i);
         if(j > i) ++rows.num_boundary_edges;
       }
       if(j > i) ++rows.num_edges;
       rows.push_back(j, corners);
     }
-    if(!diagonal_done) emit_diagonal();
-    t.outer[i + 1] = static_cast<Index>(rows.size);
+    if(diagonal < 0) emit_diagonal();
+    rows.end_row(i, diagonal);
   }
 }
 
@@ -617,7 +637,7 @@ inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> tri
   // One thread (TBB limited to one, say) gains nothing from parts: a single part takes all rows.
   const bool in_parts = thread_count(parallel) > 1;
   const Index rows_per_part = in_parts ? vertices_per_part : std::max<Index>(n, 1);
-  std::vector<Pattern_rows> parts(in_parts ? std::size_t(part_count(n, rows_per_part)) : 1);
+  std::vector<Pattern_rows> parts(in_parts ? std::size_t(part_count(n, rows_per_part)) : 1, Pattern_rows(t));
   if(in_parts) {
     // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
     // corners + 1 slots: each part writes straight into its slice of the pattern at that
@@ -634,6 +654,7 @@ inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> tri
       build_pattern_rows(t, first, last, part);
     });
   } else {
+    parts[0].reserve(7 * std::size_t(n));
     build_pattern_rows(t, 0, n, parts[0]);
   }
   // Join the parts: slot numbers and fans move by what the parts before them hold.
