@@ -429,6 +429,28 @@ TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedLargeArraysBeforeItsMat
   lapmesh::release_working_memory();
 }
 
+// The edges' ends and the counting sort's array wait in the matrix's own arrays: a call
+// allocates no working array (which, freed, the cache would keep) beside its matrix, on either
+// way of sorting the rows.
+TEST(Operators, UniformStiffnessHoldsNoWorkingArrayBesideItsMatrix)
+{
+  using lapmesh::internal::Mapping_cache;
+  const Mesh m = to_mesh(lapmesh::icosphere(6));  // 40962 vertices: each such array over 256 KiB
+  const auto general =
+    lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform).vertex_index_map(get(boost::vertex_index, m)));
+  for(const std::size_t sorted_in_place_from : {lapmesh::internal::uniform_rows_sorted_in_place_from, std::size_t(0)}) {
+    lapmesh::release_working_memory();
+    Eigen::SparseMatrix<double> W;
+    ASSERT_TRUE(lapmesh::internal::with_default_vertex_rows(m, [&](auto rows) {
+      return lapmesh::internal::uniform_stiffness_from_edges(m, rows, get(CGAL::vertex_point, m), W, sorted_in_place_from);
+    }));
+    EXPECT_EQ(Mapping_cache::total_cached_bytes(), 0u) << "sorted in place from " << sorted_in_place_from;
+    ASSERT_EQ(W.nonZeros(), general.stiffness.nonZeros());
+    EXPECT_EQ(Eigen::SparseMatrix<double>(W - general.stiffness).norm(), 0.0);
+  }
+  lapmesh::release_working_memory();
+}
+
 TEST(Operators, UniformFromEdgesReportsAsTheGeneralPath)
 {
   const auto message = [](const Mesh& m, bool general) {
@@ -1128,6 +1150,12 @@ TEST(Operators, ThePencilOfAGraphWithAnEdgeOfNoFaceIsThatOfItsFaces)
   EXPECT_TRUE(Eigen::MatrixXd(q.stiffness.topLeftCorner(n, n)) == Eigen::MatrixXd(p.stiffness));
   EXPECT_TRUE(q.mass.head(n) == p.mass);
   EXPECT_TRUE(q.mass.tail(2).isZero(0.0));
+  // The uniform stiffness off the graph's edges, sized for all of them, likewise.
+  const Eigen::SparseMatrix<double> W = lapmesh::uniform_stiffness_matrix(m), V = lapmesh::uniform_stiffness_matrix(with_edge);
+  ASSERT_EQ(V.rows(), n + 2);
+  EXPECT_EQ(V.nonZeros(), W.nonZeros());
+  EXPECT_EQ(V.outerIndexPtr()[n + 2], W.nonZeros());
+  EXPECT_TRUE(Eigen::MatrixXd(V.topLeftCorner(n, n)) == Eigen::MatrixXd(W));
 }
 
 TEST(Operators, PencilsMoveWithoutCopyingTheirStorage)

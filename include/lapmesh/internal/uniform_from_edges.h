@@ -78,8 +78,8 @@ inline bool finish_uniform_row(Index* row, double* value, Index degree, Index r)
 /// A vertex in no face gets an empty row and column.
 ///
 /// The rows are a counting sort of the edges by their ends, then by the other end, or, from
-/// `sorted_in_place_from` entries of W on, each row sorted where it lies: the graph's own arrays
-/// are read in storage order. (Circulating around each vertex instead jumps through
+/// `sorted_in_place_from` entries of W on (counted with every edge of the graph), each row sorted
+/// where it lies: the graph's own arrays are read in storage order. (Circulating around each vertex instead jumps through
 /// the halfedges, which on a mesh of poor locality made this slower than the general path once
 /// the caches were cold.)
 template <typename TriangleMesh, typename RowMap, typename VertexPointMap>
@@ -115,69 +115,80 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
     throw Mesh_error("face " + std::to_string(repeated) + " uses the same vertex twice", Mesh_error::Element::face,
                      repeated);
 
-  // The ends of every edge in a face (an edge in no face is no edge of the triangles), and the
-  // number of such edges at each vertex, in outer[r + 1].
+  // W's arrays are sized for every edge of the graph before the edges are read (an edge in no
+  // face is no edge of the triangles, and its room is trimmed at the end): the edges' ends and
+  // the counting sort's array then wait in the arrays of W that are written after them, which
+  // spares two arrays as large beside W. W cannot come from the cache of working arrays, so the
+  // cached mappings of large arrays (another call's) go back to the system first.
+  const std::size_t max_entries = std::size_t(n) + 2 * std::size_t(edges(tm).size());
+  if(max_entries > std::size_t(std::numeric_limits<Index>::max())) return false;
+  const bool sorted_in_place = max_entries >= sorted_in_place_from;
   W.resize(n, n);
-  Index* outer = W.outerIndexPtr();
+  release_cached_large_arrays();
+  W.resizeNonZeros(Index(max_entries));
+  prepare_for_writing(W);
+  Index* const outer = W.outerIndexPtr();
+  Index* const inner = W.innerIndexPtr();
+  double* const value = W.valuePtr();
   std::fill(outer, outer + n + 1, Index(0));
-  Working_array<Index> ends;
-  ends.reserve(2 * std::size_t(edges(tm).size()));
+  // The ends of every edge in a face, and the number of such edges at each vertex in
+  // outer[r + 1]. Rows sorted where they lie are scattered into `inner` itself, so the ends wait
+  // in `value` (as doubles, exact for indices); the counting sort writes `inner` only after it has
+  // read them, so they wait there.
+  std::size_t ends = 0;
   for(typename GT::edge_descriptor e : edges(tm)) {
     const typename GT::halfedge_descriptor h = halfedge(e, tm);
     if(is_border(h, tm) && is_border(opposite(h, tm), tm)) continue;
     const Index a = Index(get(row_of, target(h, tm))), b = Index(get(row_of, source(h, tm)));
     if(a == b) return false;  // a loop
-    ends.push_back(a);
-    ends.push_back(b);
+    if(sorted_in_place) {
+      value[ends] = double(a);
+      value[ends + 1] = double(b);
+    } else {
+      inner[ends] = a;
+      inner[ends + 1] = b;
+    }
+    ends += 2;
     ++outer[a + 1];
     ++outer[b + 1];
   }
   // Row r: its neighbours and, when it has any, the diagonal.
   for(Index r = 0; r < n; ++r) {
     const Index degree = outer[r + 1];
-    if(std::size_t(outer[r]) + std::size_t(degree) + 1 > std::size_t(std::numeric_limits<Index>::max())) return false;
     outer[r + 1] = outer[r] + (degree > 0 ? degree + 1 : 0);
   }
-  // The counting sort's array is taken before W's, which the cache of working arrays cannot
-  // serve: the cached mappings of large arrays that this call has not taken (another call's)
-  // go back to the system rather than lie beside W.
-  const bool sorted_in_place = std::size_t(outer[n]) >= sorted_in_place_from;
-  Working_array<Index> by_edge;
-  if(!sorted_in_place) by_edge.resize(std::size_t(outer[n]));
-  release_cached_large_arrays();
-  W.resizeNonZeros(outer[n]);
-  prepare_for_writing(W);
-  Index* inner = W.innerIndexPtr();
-  double* value = W.valuePtr();
   // Each row's neighbours in the order of the edges, its last slot (the diagonal's) unused.
   std::vector<Index> fill(outer, outer + n);
-  const auto scatter = [&](Index* rows) {
-    for(std::size_t k = 0; k < ends.size(); k += 2) {
-      rows[fill[std::size_t(ends[k])]++] = ends[k + 1];
-      rows[fill[std::size_t(ends[k + 1])]++] = ends[k];
-    }
-  };
   if(sorted_in_place) {
-    // Each row sorted where it lies (finish_uniform_row()).
-    scatter(inner);
+    // Then each row sorted where it lies (finish_uniform_row()).
+    for(std::size_t k = 0; k < ends; k += 2) {
+      const Index a = Index(value[k]), b = Index(value[k + 1]);
+      inner[fill[std::size_t(a)]++] = b;
+      inner[fill[std::size_t(b)]++] = a;
+    }
     for(Index r = 0; r < n; ++r)
       if(outer[r + 1] > outer[r] && !finish_uniform_row(inner + outer[r], value + outer[r], outer[r + 1] - outer[r] - 1, r))
         return false;
-    return true;
+  } else {
+    // Into `value` (the counting sort's array, as doubles), then every row again in ascending
+    // order: row c hands c to its neighbours' rows at step c, a counting sort by the other end.
+    for(std::size_t k = 0; k < ends; k += 2) {
+      const Index a = inner[k], b = inner[k + 1];
+      value[fill[std::size_t(a)]++] = double(b);
+      value[fill[std::size_t(b)]++] = double(a);
+    }
+    std::copy(outer, outer + n, fill.begin());
+    for(Index c = 0; c < n; ++c) {
+      const Index begin = outer[c], end = outer[c + 1];
+      if(begin == end) continue;  // a vertex in no face
+      inner[fill[std::size_t(c)]++] = c;
+      for(Index a = begin; a + 1 < end; ++a) inner[fill[std::size_t(Index(value[a]))]++] = c;
+    }
+    for(Index r = 0; r < n; ++r)
+      if(outer[r + 1] > outer[r] && !write_uniform_values(inner + outer[r], value + outer[r], outer[r + 1] - outer[r] - 1, r))
+        return false;
   }
-  // Then every row again in ascending order: row c hands c to its neighbours' rows at step c, a
-  // counting sort by the other end.
-  scatter(by_edge.data());
-  std::copy(outer, outer + n, fill.begin());
-  for(Index c = 0; c < n; ++c) {
-    const Index begin = outer[c], end = outer[c + 1];
-    if(begin == end) continue;  // a vertex in no face
-    inner[fill[std::size_t(c)]++] = c;
-    for(Index a = begin; a + 1 < end; ++a) inner[fill[std::size_t(by_edge[std::size_t(a)])]++] = c;
-  }
-  for(Index r = 0; r < n; ++r)
-    if(outer[r + 1] > outer[r] && !write_uniform_values(inner + outer[r], value + outer[r], outer[r + 1] - outer[r] - 1, r))
-      return false;
+  W.data().resize(outer[n]);  // where the graph has edges in no face or vertices in none
   return true;
 }
 
