@@ -498,11 +498,7 @@ private:
   }
 
   /// (M - lambda S)_FF, scaled.
-  void fill_matrix()
-  {
-    const double* values = m_stiffness_in_factor ? m_stiffness_in_factor : m_pencil.stiffness.valuePtr();
-    m_system->fill_matrix(values, -m_scaled_lambda, m_pencil.mass, m_system_scale);
-  }
+  void fill_matrix() { m_system->fill_matrix(stiffness().valuePtr(), -m_scaled_lambda, m_pencil.mass, m_system_scale); }
   /// M_FF P_F + lambda S_FB P_B, scaled as the matrix, into m_B (made here, its padding zero).
   void fill_rhs()
   {

@@ -217,9 +217,8 @@ public:
   double* values_to_overwrite(std::size_t count)
   {
 #ifdef LAPMESH_HAS_CHOLMOD
-    if(m_cholmod && !m_external.factor && m_chol.factor() && m_chol.factor()->xtype == CHOLMOD_REAL &&
-       std::size_t(m_chol.factor()->xsize) >= count)
-      return m_chol.values_to_overwrite();
+    const std::size_t held = factor_values();  // 0 without a factor of CHOLMOD's
+    if(held > 0 && held >= count && m_chol.factor()->xtype == CHOLMOD_REAL) return m_chol.values_to_overwrite();
 #endif
     (void)count;
     return nullptr;
