@@ -79,9 +79,9 @@ inline bool finish_uniform_row(Index* row, double* value, Index degree, Index r)
 ///
 /// The rows are a counting sort of the edges by their ends, then by the other end, or, from
 /// `sorted_in_place_from` entries of W on (counted with every edge of the graph), each row sorted
-/// where it lies: the graph's own arrays are read in storage order. (Circulating around each vertex instead jumps through
-/// the halfedges, which on a mesh of poor locality made this slower than the general path once
-/// the caches were cold.)
+/// where it lies: the graph's own arrays are read in storage order. (Circulating around each
+/// vertex instead jumps through the halfedges, which on a mesh of poor locality made this slower
+/// than the general path once the caches were cold.)
 template <typename TriangleMesh, typename RowMap, typename VertexPointMap>
 bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexPointMap vpm,
                                   Eigen::SparseMatrix<double>& W,
