@@ -32,34 +32,30 @@ namespace internal {
 template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParameters>
 void assemble_extracted_pencil(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
 {
-  const bool parallel = internal::is_parallel<ConcurrencyTag>();
+  const bool parallel = is_parallel<ConcurrencyTag>();
   // Serially the cotangent rows are appended as they are built, so no pattern is kept beside the
   // matrix; in parallel each part must know where its rows go, which the pattern gives.
-  const bool by_rows = internal::choose_laplacian(np) == Laplacian::cotangent && !parallel;
-  auto mesh = internal::extract_mesh(
-    tm, np, by_rows ? internal::Topology_detail::incidence : internal::Topology_detail::pattern, parallel);
+  const bool by_rows = choose_laplacian(np) == Laplacian::cotangent && !parallel;
+  auto mesh = extract_mesh(tm, np, by_rows ? Topology_detail::incidence : Topology_detail::pattern, parallel);
   // What the matrix's fill does not read goes back to the system before the matrix is allocated,
   // which the cache of working arrays could not serve.
   const auto release_positions_and_vertices = [&] {
-    mesh.positions = internal::Positions();
-    internal::release_to_system(mesh.vertices);
-    internal::release_to_system(mesh.vertex_rows);
+    mesh.positions = Positions();
+    release_to_system(mesh.vertices);
+    release_to_system(mesh.vertex_rows);
   };
   if(by_rows) {
-    // The faces' edges are among the graph's, which bound the matrix's entries.
-    const std::size_t edges = internal::edge_count(tm);
-    const std::size_t max_nonzeros = edges > 0 ? std::size_t(mesh.topology.num_vertices) + 2 * edges : 0;
-    internal::assemble_cotangent_pencil_by_rows(mesh.topology, mesh.positions, internal::choose_vertex_area(np),
-                                                max_nonzeros, out, release_positions_and_vertices);
+    const std::size_t max_nonzeros = std::size_t(mesh.topology.num_vertices) + 2 * graph_edge_count(tm);
+    assemble_cotangent_pencil_by_rows(mesh.topology, mesh.positions, choose_vertex_area(np), max_nonzeros, out,
+                                      release_positions_and_vertices);
   } else {
     const auto release_geometry_inputs = [&] {
       release_positions_and_vertices();
-      internal::release_to_system(mesh.topology.triangles);
+      release_to_system(mesh.topology.triangles);
       mesh.topology.release_corner_lists();
     };
-    internal::assemble_pencil(mesh.topology, mesh.positions, internal::choose_laplacian(np),
-                              internal::choose_vertex_area(np), parallel, out, internal::choose_mollification(np),
-                              release_geometry_inputs);
+    assemble_pencil(mesh.topology, mesh.positions, choose_laplacian(np), choose_vertex_area(np), parallel, out,
+                    choose_mollification(np), release_geometry_inputs);
   }
   if(mesh.num_rows_in_no_face() > 0) {  // their rows and columns are zero, their mass too
     mesh.move_to_rows(out.stiffness);

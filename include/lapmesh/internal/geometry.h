@@ -454,6 +454,13 @@ inline Positions uniform_laplacian_sums(const Mesh_topology& t, const Positions&
 
 /// Writes the cotangent stiffness C (C_ij = 1/2 (cot alpha + cot beta), C_ii = -sum)
 /// into the values of the pattern of `t`, one row at a time (rows are independent).
+/// C_ij = 1/2 (cot alpha + cot beta) of the corners opposite the halfedges i->j and j->i (-1 where
+/// that side has no face).
+inline double cotangent_weight(const double* cot, const std::array<Index, 2>& c)
+{
+  return 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
+}
+
 inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geometry& g, double* values,
                                      bool parallel)
 {
@@ -461,9 +468,8 @@ inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geomet
   for_each_index(t.num_vertices, parallel, [&](Index i) {
     double diagonal = 0;
     for(Index s = t.outer[i]; s < t.outer[i + 1]; ++s) {
-      const std::array<Index, 2>& c = t.slot_corners[s];
       if(s == t.diagonal_slot[i]) continue;
-      const double w = 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
+      const double w = cotangent_weight(cot, t.slot_corners[s]);
       values[s] = w;
       diagonal -= w;
     }
@@ -495,7 +501,7 @@ public:
     void set(Index slot, Index j, std::array<Index, 2> c) const
     {
       inner[slot] = j;
-      values[slot] = 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
+      values[slot] = cotangent_weight(cot, c);
     }
   };
 

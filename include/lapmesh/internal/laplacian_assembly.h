@@ -49,8 +49,8 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
 /// built with their values straight into the matrix (Cotangent_rows), which finds the edges and
 /// any non-manifold one as it goes. At its peak the call holds the triangles, the corner lists,
 /// the cotangents and the result, not the pattern's slots beside them. `max_nonzeros`: the most
-/// entries the matrix can need (the vertices plus twice the edges that the caller's graph
-/// holds), or 0 where unknown; a matrix sized too small is written again at its exact size.
+/// entries the matrix can need (the vertices plus twice graph_edge_count()); a matrix sized too
+/// small is written again at the size that the first pass counted.
 /// `after_geometry()` as in assemble_pencil(), except that the triangles and the corner lists
 /// are read after it.
 template <typename AfterGeometry = void (*)()>
@@ -71,9 +71,7 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
     build_pattern_rows(t, 0, n, rows);
     return rows;
   };
-  // A closed manifold mesh has as many neighbours per vertex as corners: the guess where the
-  // caller knows no bound.
-  Cotangent_rows rows = write_rows(max_nonzeros > 0 ? max_nonzeros : std::size_t(n) + t.vertex_corners.size());
+  Cotangent_rows rows = write_rows(max_nonzeros);
   if(rows.overran()) rows = write_rows(rows.size);
   if(!rows.manifold)  // the pattern's topology names the edge
     require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));

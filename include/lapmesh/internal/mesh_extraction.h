@@ -464,22 +464,12 @@ Working_array<Index> renumber_for_locality(Extracted_arrays<TriangleMesh>& array
   return triangles;
 }
 
-template <typename Graph, typename = void>
-struct Counts_its_edges : std::false_type
-{};
+/// The edges of the graph `tm`, those in no face included: a bound on the edges of its faces, and
+/// so on the entries of a Laplacian's pattern (the vertices plus twice the edges).
 template <typename Graph>
-struct Counts_its_edges<Graph, std::void_t<decltype(num_edges(std::declval<const Graph&>()))>> : std::true_type
-{};
-
-/// The number of edges of `tm` where its type counts them (num_edges() of an EdgeListGraph),
-/// else 0.
-template <typename TriangleMesh>
-std::size_t edge_count(const TriangleMesh& tm)
+std::size_t graph_edge_count(const Graph& tm)
 {
-  if constexpr(Counts_its_edges<TriangleMesh>::value)
-    return std::size_t(num_edges(tm));
-  else
-    return 0;
+  return std::size_t(edges(tm).size());
 }
 
 /// How much of the topology an extraction builds: the sparsity pattern and its edge slots

@@ -120,7 +120,7 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   // the counting sort's array then wait in the arrays of W that are written after them, which
   // spares two arrays as large beside W. W cannot come from the cache of working arrays, so the
   // cached mappings of large arrays (another call's) go back to the system first.
-  const std::size_t max_entries = std::size_t(n) + 2 * std::size_t(edges(tm).size());
+  const std::size_t max_entries = std::size_t(n) + 2 * graph_edge_count(tm);
   if(max_entries > std::size_t(std::numeric_limits<Index>::max())) return false;
   const bool sorted_in_place = max_entries >= sorted_in_place_from;
   W.resize(n, n);
