@@ -401,7 +401,7 @@ TEST(Operators, UniformFromEdgesEqualsTheGeneralPath)
   expect_uniform_paths_equal(holes, "removed elements");
 }
 
-TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedLargeArraysBeforeItsMatrix)
+TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedArraysBeforeItsMatrix)
 {
   using lapmesh::internal::Mapping_cache;
   using lapmesh::internal::Working_array;
@@ -410,21 +410,30 @@ TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedLargeArraysBeforeItsMat
   const Mesh m = to_mesh(lapmesh::icosphere(4));
   const Eigen::SparseMatrix<double> reference =
     lapmesh::laplacian_pencil(m, LP::laplacian(lapmesh::Laplacian::uniform)).stiffness;
-  // Another call's freed large array (three huge pages), cached for a call that needs it.
-  { Working_array<double> other_calls((std::size_t(6) << 20) / sizeof(double)); }
-  ASSERT_EQ(Mapping_cache::large_arrays().cached_bytes(), std::size_t(6) << 20);
+  // Another call's freed arrays, cached for a call that needs them: a large one (three huge
+  // pages) and a small one (1 MiB, in small pages).
+  const std::size_t large = std::size_t(6) << 20, small = std::size_t(1) << 20;
+  const auto cache_other_calls_arrays = [&] {
+    Working_array<double> large_array(large / sizeof(double)), small_array(small / sizeof(double));
+  };
+  lapmesh::release_working_memory();
+  cache_other_calls_arrays();
+  ASSERT_EQ(Mapping_cache::large_arrays().cached_bytes(), large);
+  ASSERT_EQ(Mapping_cache::small_arrays().cached_bytes(), small);
   const Eigen::SparseMatrix<double> W = lapmesh::uniform_stiffness_matrix(m);
   EXPECT_EQ(Mapping_cache::large_arrays().cached_bytes(), 0u) << "it lay beside the matrix";
+  EXPECT_EQ(Mapping_cache::small_arrays().cached_bytes(), 0u) << "it lay beside the matrix";
   ASSERT_EQ(W.nonZeros(), reference.nonZeros());
   EXPECT_EQ(Eigen::MatrixXd(W - reference).cwiseAbs().maxCoeff(), 0.0);
   // The control: with a vertex_index_map the general path assembles, which hands back its own
-  // inputs only, and another call's cached mapping stays.
-  { Working_array<double> other_calls((std::size_t(6) << 20) / sizeof(double)); }
+  // inputs only, and another call's cached mappings stay.
+  cache_other_calls_arrays();
   auto rows = get(CGAL::dynamic_vertex_property_t<int>(), m);
   int i = 0;
   for(auto v : vertices(m)) put(rows, v, i++);
   const Eigen::SparseMatrix<double> welded = lapmesh::uniform_stiffness_matrix(m, CGAL::parameters::vertex_index_map(rows));
-  EXPECT_EQ(Mapping_cache::large_arrays().cached_bytes(), std::size_t(6) << 20);
+  EXPECT_EQ(Mapping_cache::large_arrays().cached_bytes(), large);
+  EXPECT_EQ(Mapping_cache::small_arrays().cached_bytes(), small);
   EXPECT_EQ(Eigen::MatrixXd(welded - reference).cwiseAbs().maxCoeff(), 0.0);
   lapmesh::release_working_memory();
 }
