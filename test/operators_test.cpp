@@ -1099,7 +1099,7 @@ TEST(Operators, CotangentRowsEqualTheFilledPattern)
       for(const std::size_t bound : {exact, exact + 7, std::size_t(0), std::size_t(c.n)}) {
         lapmesh::Laplacian_pencil by_rows;
         lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P, area, bound,
-                                                             by_rows);
+                                                             false, by_rows);
         const std::string with = what + ", bound " + std::to_string(bound);
         ASSERT_EQ(by_rows.stiffness.rows(), c.n) << with;
         ASSERT_EQ(std::size_t(by_rows.stiffness.nonZeros()), exact) << with;
@@ -1137,9 +1137,136 @@ TEST(Operators, CotangentRowsEqualTheFilledPattern)
   EXPECT_NE(by_pattern.find("is non-manifold"), std::string::npos) << by_pattern;
   EXPECT_EQ(message([&] {
               lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(43, fin), P,
-                                                                   lapmesh::Vertex_area::mixed, 0, out);
+                                                                   lapmesh::Vertex_area::mixed, 0, false, out);
             }),
             by_pattern);
+  // With a zero-area face too (vertex 3 on vertex 2), the edge is still named first.
+  P.row(3) = P.row(2);
+  EXPECT_EQ(message([&] {
+              lapmesh::internal::assemble_pencil(build_topology(43, fin), P, lapmesh::Laplacian::cotangent,
+                                                 lapmesh::Vertex_area::mixed, false, out);
+            }),
+            by_pattern);
+  EXPECT_EQ(message([&] {
+              lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(43, fin), P,
+                                                                   lapmesh::Vertex_area::mixed, 0, false, out);
+            }),
+            by_pattern);
+  EXPECT_NE(message([&] {
+              lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(42, double_cone),
+                                                                   P.topRows(42), lapmesh::Vertex_area::mixed, 0,
+                                                                   false, out);
+            }).find("has zero area"),
+            std::string::npos)
+    << "the control: without the fin, the face is named";
+}
+
+// In parallel each part writes its rows into a slice of the matrix placed as if every vertex were
+// interior: a closed manifold mesh fills them exactly; a boundary vertex, a face given twice or a
+// row longer than its corners make a part overflow its slice, or leave it short, and the rows are
+// written again. Either way the matrix is the serial one, bit for bit, and a non-manifold edge
+// gets the same message. Parts of a few dozen rows stand in for the large meshes' parts.
+TEST(Operators, ParallelCotangentRowsEqualTheSerialOnes)
+{
+  using lapmesh::internal::build_corner_incidence;
+  using lapmesh::internal::Positions;
+  struct Case
+  {
+    std::string name;
+    int n;
+    Working_array<int> tri;
+    Positions P;
+  };
+  std::vector<Case> cases;
+  const lapmesh::Triangle_soup torus = lapmesh::torus(40, 20), patch = lapmesh::plane_patch(30, 0.3);
+  for(const auto& [name, soup] : {std::make_pair("torus", torus), std::make_pair("plane patch", patch)}) {
+    auto [n, tri] = flat(soup);
+    cases.push_back({name, n, tri, soup_positions(soup)});
+  }
+  const auto flat_torus = flat(torus);
+  const int n = flat_torus.first;
+  const Working_array<int>& tri = flat_torus.second;
+  const Positions P = soup_positions(torus);
+  const int middle = int(tri.size() / 6);
+  Working_array<int> hole = tri, shuffled = tri;
+  hole.erase(hole.begin() + 3 * middle, hole.begin() + 3 * middle + 3);
+  cases.push_back({"torus with a hole", n, hole, P});
+  std::vector<int> label(static_cast<std::size_t>(n));
+  std::iota(label.begin(), label.end(), 0);
+  std::shuffle(label.begin(), label.end(), std::mt19937(11));
+  Positions shuffled_P(n, 3);
+  for(int v = 0; v < n; ++v) shuffled_P.row(label[std::size_t(v)]) = P.row(v);
+  for(int& v : shuffled) v = label[std::size_t(v)];
+  cases.push_back({"shuffled torus", n, shuffled, shuffled_P});
+  Working_array<int> double_cone;
+  for(int i = 0; i < 40; ++i) {  // hubs of 40 corners
+    const int j = 2 + i, k = 2 + (i + 1) % 40;
+    double_cone.insert(double_cone.end(), {0, j, k, 1, k, j});
+  }
+  cases.push_back({"double cone", 42, double_cone, circle_with_hubs(2, 40)});
+  Working_array<int> twice = tri, fin = double_cone;
+  twice.insert(twice.end(), tri.begin() + 3 * middle, tri.begin() + 3 * middle + 3);
+  fin.insert(fin.end(), {0, 2, 41});
+  const auto message = [](const auto& assemble) -> std::string {
+    try {
+      assemble();
+    } catch(const lapmesh::Mesh_error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+#ifdef CGAL_LINKED_WITH_TBB
+  for(int threads : {3, 8}) {
+    tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+    tbb::task_arena(threads).execute([&] {
+      for(const auto& c : cases)
+        for(const int rows_per_part : {7, 37, 1000}) {
+          const std::string with = c.name + ", " + std::to_string(threads) + " threads, parts of " +
+                                   std::to_string(rows_per_part);
+          lapmesh::Laplacian_pencil serial, parallel;
+          const std::size_t bound = std::size_t(c.n) + c.tri.size();
+          lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
+                                                               lapmesh::Vertex_area::mixed, bound, false, serial);
+          lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
+                                                               lapmesh::Vertex_area::mixed, bound, true, parallel,
+                                                               [] {}, rows_per_part);
+          const std::size_t nnz = std::size_t(serial.stiffness.nonZeros());
+          ASSERT_EQ(std::size_t(parallel.stiffness.nonZeros()), nnz) << with;
+          EXPECT_TRUE(parallel.stiffness.isCompressed()) << with;
+          EXPECT_TRUE(std::equal(serial.stiffness.outerIndexPtr(), serial.stiffness.outerIndexPtr() + c.n + 1,
+                                 parallel.stiffness.outerIndexPtr()))
+            << with;
+          EXPECT_TRUE(std::equal(serial.stiffness.innerIndexPtr(), serial.stiffness.innerIndexPtr() + nnz,
+                                 parallel.stiffness.innerIndexPtr()))
+            << with;
+          EXPECT_TRUE(std::equal(serial.stiffness.valuePtr(), serial.stiffness.valuePtr() + nnz,
+                                 parallel.stiffness.valuePtr()))
+            << with;
+          EXPECT_TRUE(serial.mass == parallel.mass) << with;
+        }
+      Positions flattened = circle_with_hubs(2, 40);
+      flattened.row(3) = flattened.row(2);  // faces of zero area beside the fin
+      for(const Case& c : {Case{"a face given twice", n, twice, P}, Case{"a fin on the double cone", 42, fin, circle_with_hubs(2, 40)},
+                           Case{"a fin and faces of zero area", 42, fin, flattened}}) {
+        lapmesh::Laplacian_pencil out;
+        const std::string serial = message([&] {
+          lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
+                                                               lapmesh::Vertex_area::mixed, 0, false, out);
+        });
+        EXPECT_NE(serial.find("is non-manifold"), std::string::npos) << c.name << ": " << serial;
+        EXPECT_EQ(message([&] {
+                    lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
+                                                                         lapmesh::Vertex_area::mixed, 0, true, out,
+                                                                         [] {}, 7);
+                  }),
+                  serial)
+          << c.name;
+      }
+    });
+  }
+#else
+  FAIL() << "lapmesh was built without TBB (libtbb-dev): its parallel path is not tested";
+#endif
 }
 
 // The bound on the entries comes from the graph's edges, which may be more than its faces'

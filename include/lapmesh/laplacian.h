@@ -33,12 +33,13 @@ template <typename ConcurrencyTag, typename TriangleMesh, typename NamedParamete
 void assemble_extracted_pencil(const TriangleMesh& tm, const NamedParameters& np, Laplacian_pencil& out)
 {
   const bool parallel = is_parallel<ConcurrencyTag>();
-  // Serially the cotangent rows are appended as they are built, so no pattern is kept beside the
-  // matrix; in parallel each part must know where its rows go, which the pattern gives.
-  const bool by_rows = choose_laplacian(np) == Laplacian::cotangent && !parallel;
+  // The cotangent rows are written into the matrix as they are built, so no pattern is kept
+  // beside it.
+  const bool by_rows = choose_laplacian(np) == Laplacian::cotangent;
   auto mesh = extract_mesh(tm, np, by_rows ? Topology_detail::incidence : Topology_detail::pattern, parallel);
-  // What the matrix's fill does not read goes back to the system before the matrix is allocated,
-  // which the cache of working arrays could not serve.
+  // What the matrix's fill does not read is freed before the matrix is allocated, which the cache
+  // of working arrays could not serve: large arrays go back to the system, small ones stay cached
+  // for the next call (release_to_system()).
   const auto release_positions_and_vertices = [&] {
     mesh.positions = Positions();
     release_to_system(mesh.vertices);
@@ -46,8 +47,8 @@ void assemble_extracted_pencil(const TriangleMesh& tm, const NamedParameters& np
   };
   if(by_rows) {
     const std::size_t max_nonzeros = std::size_t(mesh.topology.num_vertices) + 2 * graph_edge_count(tm);
-    assemble_cotangent_pencil_by_rows(mesh.topology, mesh.positions, choose_vertex_area(np), max_nonzeros, out,
-                                      release_positions_and_vertices);
+    assemble_cotangent_pencil_by_rows(mesh.topology, mesh.positions, choose_vertex_area(np), max_nonzeros, parallel,
+                                      out, release_positions_and_vertices);
   } else {
     const auto release_geometry_inputs = [&] {
       release_positions_and_vertices();

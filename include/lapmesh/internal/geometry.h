@@ -477,21 +477,19 @@ inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geomet
   });
 }
 
-/// The writer of build_pattern_rows() that puts the cotangent stiffness straight into a matrix
-/// sized for at most `capacity` entries, each row appended after the one before (serially), so
-/// that neither the pattern's corner slots nor a second copy of its indices lies beside the
-/// matrix. Each entry is the value fill_cotangent_stiffness() writes there, the diagonal added up
+/// The writer of build_pattern_rows() that puts the cotangent stiffness straight into a slice of
+/// a matrix's arrays, room for at most `capacity` entries at `inner` and `values`, each row
+/// appended after the one before, so that neither the pattern's corner slots nor a second copy of
+/// its indices lies beside the matrix. Row i's end goes to outer[i + 1], counted from the slice's
+/// start. Each entry is the value fill_cotangent_stiffness() writes there, the diagonal added up
 /// in the same order. Rows that would overrun the capacity are only counted (overran()); `size`
-/// is then the number of entries the matrix needs.
+/// is then the number of entries the slice needs.
 class Cotangent_rows : public Pattern_row_counts
 {
 public:
-  Cotangent_rows(const double* cot, Eigen::SparseMatrix<double>& S)
-      : m_cot(cot), m_outer(S.outerIndexPtr()), m_inner(S.innerIndexPtr()), m_values(S.valuePtr()),
-        m_capacity(std::size_t(S.data().size()))
-  {
-    m_outer[0] = 0;
-  }
+  Cotangent_rows(const double* cot, Index* outer, Index* inner, double* values, std::size_t capacity)
+      : m_cot(cot), m_outer(outer), m_inner(inner), m_values(values), m_capacity(capacity)
+  {}
 
   struct Entries
   {
@@ -520,10 +518,12 @@ public:
   void push_back(Index j, std::array<Index, 2> corners) { append(1).set(0, j, corners); }
   void end_row(Index i, Index diagonal)
   {
+    const std::size_t begin = m_row_begin;
+    m_row_begin = size;
     if(m_overran) return;
     double sum = 0;
-    for(Index s = m_outer[i]; s < static_cast<Index>(size); ++s)
-      if(s != diagonal) sum -= m_values[s];
+    for(std::size_t s = begin; s < size; ++s)
+      if(s != std::size_t(diagonal)) sum -= m_values[s];
     m_values[diagonal] = sum;
     m_outer[i + 1] = static_cast<Index>(size);
   }
@@ -538,6 +538,7 @@ private:
   Index* m_inner;
   double* m_values;
   std::size_t m_capacity;
+  std::size_t m_row_begin = 0;
   bool m_overran = false;
   std::vector<Index> m_scratch_inner;
   std::vector<double> m_scratch_values;

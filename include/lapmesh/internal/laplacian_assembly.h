@@ -13,8 +13,10 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace lapmesh {
 namespace internal {
@@ -44,38 +46,84 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
   fill_cotangent_stiffness(t, g, stiffness_values(), parallel);
 }
 
-/// Assembles the cotangent (S, M) serially on a topology of corner incidence alone
-/// (build_corner_incidence(): no pattern): the corner geometry first, then the pattern's rows
-/// built with their values straight into the matrix (Cotangent_rows), which finds the edges and
-/// any non-manifold one as it goes. At its peak the call holds the triangles, the corner lists,
-/// the cotangents and the result, not the pattern's slots beside them. `max_nonzeros`: the most
-/// entries the matrix can need (the vertices plus twice graph_edge_count()); a matrix sized too
-/// small is written again at the size that the first pass counted.
+/// Assembles the cotangent (S, M) on a topology of corner incidence alone (build_corner_incidence():
+/// no pattern): the corner geometry first, then the pattern's rows built with their values
+/// straight into the matrix (Cotangent_rows), which finds the edges and any non-manifold one as it
+/// goes. At its peak the call holds the triangles, the corner lists, the cotangents and the
+/// result, not the pattern's slots beside them. `max_nonzeros`: the most entries the matrix can
+/// need (the vertices plus twice graph_edge_count()).
+/// In parallel the rows are built in parts, each into its slice of the matrix. An interior vertex
+/// of a manifold mesh has as many neighbours as corners, which places each part's slice; where a
+/// part's rows do not fill it exactly (a boundary vertex, a face given twice), or serially where
+/// the matrix is too small, the rows are written again at the places that the first pass counted.
 /// `after_geometry()` as in assemble_pencil(), except that the triangles and the corner lists
-/// are read after it.
+/// are read after it. `rows_per_part`: for tests only.
 template <typename AfterGeometry = void (*)()>
 void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
-                                       std::size_t max_nonzeros, Laplacian_pencil& out,
-                                       const AfterGeometry& after_geometry = [] {})
+                                       std::size_t max_nonzeros, bool parallel, Laplacian_pencil& out,
+                                       const AfterGeometry& after_geometry = [] {},
+                                       Index rows_per_part = vertices_per_part)
 {
+  const Index n = t.num_vertices;
   Corner_geometry g;
-  compute_corner_geometry(t, P, Corner_request{area, false, false}, false, g);
+  try {
+    compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
+  } catch(const Mesh_error&) {
+    // A non-manifold edge is named before a degenerate face, as where the pattern is built first.
+    require_manifold(build_topology(n, Working_array<Index>(t.triangles), parallel), to_string(Laplacian::cotangent));
+    throw;
+  }
   out.mass = std::move(g.vertex_area);
   after_geometry();
-  const Index n = t.num_vertices;
-  const auto write_rows = [&](std::size_t capacity) {
+  // One thread gains nothing from parts: a single part takes all rows.
+  const bool in_parts = thread_count(parallel) > 1 && n > rows_per_part;
+  if(!in_parts) rows_per_part = std::max<Index>(n, 1);
+  const std::size_t num_parts = std::size_t(part_count(n, rows_per_part));
+  // Where each part's slice starts; the last entry is the matrix's size.
+  std::vector<std::size_t> slice(num_parts + 1, 0);
+  for(std::size_t p = 1; p <= num_parts; ++p) {
+    const Index end = std::min(Index(p) * rows_per_part, n);
+    slice[p] = in_parts ? std::size_t(t.corner_begin[end]) + std::size_t(end) : max_nonzeros;
+  }
+  std::vector<std::size_t> written(num_parts, 0);
+  bool manifold = true;
+  const auto write_rows = [&] {
+    release(out.stiffness);  // a matrix written again is sized afresh, not copied
     out.stiffness.resize(n, n);
-    out.stiffness.resizeNonZeros(static_cast<Index>(capacity));
-    prepare_for_writing(out.stiffness);
-    Cotangent_rows rows(g.cot_values(), out.stiffness);
-    build_pattern_rows(t, 0, n, rows);
-    return rows;
+    out.stiffness.resizeNonZeros(static_cast<Index>(slice[num_parts]));
+    prepare_for_writing(out.stiffness, in_parts);
+    std::vector<char> part_manifold(num_parts, 1);
+    for_each_part(n, rows_per_part, in_parts, [&](Index p, Index first, Index last) {
+      const std::size_t at = slice[std::size_t(p)];
+      Cotangent_rows rows(g.cot_values(), out.stiffness.outerIndexPtr(), out.stiffness.innerIndexPtr() + at,
+                          out.stiffness.valuePtr() + at, slice[std::size_t(p) + 1] - at);
+      build_pattern_rows(t, first, last, rows);
+      written[std::size_t(p)] = rows.size;
+      part_manifold[std::size_t(p)] = rows.manifold;
+    });
+    manifold = std::find(part_manifold.begin(), part_manifold.end(), 0) == part_manifold.end();
   };
-  Cotangent_rows rows = write_rows(max_nonzeros);
-  if(rows.overran()) rows = write_rows(rows.size);
-  if(!rows.manifold)  // the pattern's topology names the edge
+  write_rows();
+  if(!manifold)  // the pattern's topology names the edge
     require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
-  out.stiffness.data().resize(static_cast<Index>(rows.size));  // where the graph had more edges than its faces
+  // Every part but the last must fill its slice; the last one may leave room (the bound's).
+  bool in_place = true;
+  for(std::size_t p = 0; p < num_parts; ++p)
+    in_place = in_place && (p + 1 < num_parts ? written[p] == slice[p + 1] - slice[p] : written[p] <= slice[p + 1] - slice[p]);
+  if(!in_place) {
+    for(std::size_t p = 0; p < num_parts; ++p) slice[p + 1] = slice[p] + written[p];
+    write_rows();
+  }
+  // Each part counted its rows' ends from its slice's start.
+  Index* const outer = out.stiffness.outerIndexPtr();
+  outer[0] = 0;
+  for_each_part(n, rows_per_part, in_parts, [&](Index p, Index first, Index last) {
+    const Index base = static_cast<Index>(slice[std::size_t(p)]);
+    if(base > 0)
+      for(Index i = first; i < last; ++i) outer[i + 1] += base;
+  });
+  // Where the graph had more edges than its faces.
+  out.stiffness.data().resize(static_cast<Index>(num_parts > 0 ? slice[num_parts - 1] + written[num_parts - 1] : 0));
 }
 
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
