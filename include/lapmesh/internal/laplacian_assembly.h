@@ -70,7 +70,7 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
     compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
   } catch(const Mesh_error&) {
     // A non-manifold edge is named before a degenerate face, as where the pattern is built first.
-    require_manifold(build_topology(n, Working_array<Index>(t.triangles), parallel), to_string(Laplacian::cotangent));
+    require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
     throw;
   }
   out.mass = std::move(g.vertex_area);
@@ -108,8 +108,10 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
     require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
   // Every part but the last must fill its slice; the last one may leave room (the bound's).
   bool in_place = true;
-  for(std::size_t p = 0; p < num_parts; ++p)
-    in_place = in_place && (p + 1 < num_parts ? written[p] == slice[p + 1] - slice[p] : written[p] <= slice[p + 1] - slice[p]);
+  for(std::size_t p = 0; p < num_parts; ++p) {
+    const std::size_t room = slice[p + 1] - slice[p];
+    in_place = in_place && (p + 1 < num_parts ? written[p] == room : written[p] <= room);
+  }
   if(!in_place) {
     for(std::size_t p = 0; p < num_parts; ++p) slice[p + 1] = slice[p] + written[p];
     write_rows();
