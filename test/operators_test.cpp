@@ -1053,6 +1053,66 @@ lapmesh::internal::Positions soup_positions(const lapmesh::Triangle_soup& soup)
   return P;
 }
 
+/// A triangle list over vertices 0..n-1 with its positions.
+struct Triangles_case
+{
+  std::string name;
+  int n;
+  Working_array<int> tri;
+  lapmesh::internal::Positions P;
+};
+
+Triangles_case triangles_case(const std::string& name, const lapmesh::Triangle_soup& soup)
+{
+  auto [n, tri] = flat(soup);
+  return {name, n, std::move(tri), soup_positions(soup)};
+}
+
+/// Double cones of `ring` faces around each of two hubs (0 and 1), closed: rows longer than a
+/// short sort's.
+Working_array<int> double_cone(int ring)
+{
+  Working_array<int> tri;
+  for(int i = 0; i < ring; ++i) {
+    const int j = 2 + i, k = 2 + (i + 1) % ring;
+    tri.insert(tri.end(), {0, j, k, 1, k, j});
+  }
+  return tri;
+}
+
+/// Expects `actual` to equal `expected` bit for bit: its compressed storage and its mass.
+void expect_same_pencil_bits(const lapmesh::Laplacian_pencil& expected, const lapmesh::Laplacian_pencil& actual,
+                             const std::string& what)
+{
+  const Eigen::Index n = expected.stiffness.rows();
+  const std::size_t nnz = std::size_t(expected.stiffness.nonZeros());
+  ASSERT_EQ(actual.stiffness.rows(), n) << what;
+  ASSERT_EQ(std::size_t(actual.stiffness.nonZeros()), nnz) << what;
+  EXPECT_TRUE(actual.stiffness.isCompressed()) << what;
+  EXPECT_TRUE(std::equal(expected.stiffness.outerIndexPtr(), expected.stiffness.outerIndexPtr() + n + 1,
+                         actual.stiffness.outerIndexPtr()))
+    << what;
+  EXPECT_TRUE(std::equal(expected.stiffness.innerIndexPtr(), expected.stiffness.innerIndexPtr() + nnz,
+                         actual.stiffness.innerIndexPtr()))
+    << what;
+  EXPECT_TRUE(std::equal(expected.stiffness.valuePtr(), expected.stiffness.valuePtr() + nnz,
+                         actual.stiffness.valuePtr()))
+    << what;
+  EXPECT_TRUE(actual.mass == expected.mass) << what;
+}
+
+/// The message of the Mesh_error that `run` throws, or "no error".
+template <typename Run>
+std::string mesh_error_message(const Run& run)
+{
+  try {
+    run();
+  } catch(const lapmesh::Mesh_error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 } // namespace
 
 // The serial cotangent pencil builds the pattern's rows with their values straight into the
@@ -1065,27 +1125,13 @@ TEST(Operators, CotangentRowsEqualTheFilledPattern)
   using lapmesh::internal::build_corner_incidence;
   using lapmesh::internal::build_topology;
   using lapmesh::internal::Positions;
-  struct Case
-  {
-    std::string name;
-    int n;
-    Working_array<int> tri;
-    Positions P;
-  };
-  std::vector<Case> cases;
-  for(const auto& [name, soup] : {std::make_pair("torus", lapmesh::torus(12, 8)),
-                                  std::make_pair("plane patch", lapmesh::plane_patch(7, 0.3)),
-                                  std::make_pair("icosphere", lapmesh::icosphere(2))}) {
-    auto [n, tri] = flat(soup);
-    cases.push_back({name, n, tri, soup_positions(soup)});
-  }
-  Working_array<int> double_cone, open_fan;
-  for(int i = 0; i < 40; ++i) {  // hubs of 40 corners: rows longer than a short sort's
-    const int j = 2 + i, k = 2 + (i + 1) % 40;
-    double_cone.insert(double_cone.end(), {0, j, k, 1, k, j});
-    if(i < 39) open_fan.insert(open_fan.end(), {0, 1 + i, 2 + i});
-  }
-  cases.push_back({"double cone", 42, double_cone, circle_with_hubs(2, 40)});
+  std::vector<Triangles_case> cases = {triangles_case("torus", lapmesh::torus(12, 8)),
+                                       triangles_case("plane patch", lapmesh::plane_patch(7, 0.3)),
+                                       triangles_case("icosphere", lapmesh::icosphere(2))};
+  const Working_array<int> cone = double_cone(40);  // hubs of 40 corners
+  Working_array<int> open_fan;
+  for(int i = 0; i < 39; ++i) open_fan.insert(open_fan.end(), {0, 1 + i, 2 + i});
+  cases.push_back({"double cone", 42, cone, circle_with_hubs(2, 40)});
   cases.push_back({"open fan", 41, open_fan, circle_with_hubs(1, 40)});
   cases.push_back({"two triangles sharing a vertex", 5, {0, 1, 2, 0, 3, 4}, circle_with_hubs(1, 4)});
   for(const auto& c : cases)
@@ -1100,60 +1146,39 @@ TEST(Operators, CotangentRowsEqualTheFilledPattern)
         lapmesh::Laplacian_pencil by_rows;
         lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P, area, bound,
                                                              false, by_rows);
-        const std::string with = what + ", bound " + std::to_string(bound);
-        ASSERT_EQ(by_rows.stiffness.rows(), c.n) << with;
-        ASSERT_EQ(std::size_t(by_rows.stiffness.nonZeros()), exact) << with;
-        EXPECT_TRUE(by_rows.stiffness.isCompressed()) << with;
-        EXPECT_TRUE(std::equal(filled.stiffness.outerIndexPtr(), filled.stiffness.outerIndexPtr() + c.n + 1,
-                               by_rows.stiffness.outerIndexPtr()))
-          << with;
-        EXPECT_TRUE(std::equal(filled.stiffness.innerIndexPtr(), filled.stiffness.innerIndexPtr() + exact,
-                               by_rows.stiffness.innerIndexPtr()))
-          << with;
-        EXPECT_TRUE(std::equal(filled.stiffness.valuePtr(), filled.stiffness.valuePtr() + exact,
-                               by_rows.stiffness.valuePtr()))
-          << with;
-        EXPECT_TRUE(by_rows.mass == filled.mass) << with;
+        expect_same_pencil_bits(filled, by_rows, what + ", bound " + std::to_string(bound));
       }
     }
   // A non-manifold edge (a third face on the double cone's edge 0-2) is named as the pattern names it.
-  auto fin = double_cone;
+  auto fin = cone;
   fin.insert(fin.end(), {0, 2, 42});
   Positions P(43, 3);
   P << circle_with_hubs(2, 40), Eigen::RowVector3d(0.5, 0.5, 2.0);
-  const auto message = [&](const auto& assemble) -> std::string {
-    try {
-      assemble();
-    } catch(const lapmesh::Mesh_error& e) {
-      return e.what();
-    }
-    return "no error";
-  };
   lapmesh::Laplacian_pencil out;
-  const std::string by_pattern = message([&] {
+  const std::string by_pattern = mesh_error_message([&] {
     lapmesh::internal::assemble_pencil(build_topology(43, fin), P, lapmesh::Laplacian::cotangent,
                                        lapmesh::Vertex_area::mixed, false, out);
   });
   EXPECT_NE(by_pattern.find("is non-manifold"), std::string::npos) << by_pattern;
-  EXPECT_EQ(message([&] {
+  EXPECT_EQ(mesh_error_message([&] {
               lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(43, fin), P,
                                                                    lapmesh::Vertex_area::mixed, 0, false, out);
             }),
             by_pattern);
   // With a zero-area face too (vertex 3 on vertex 2), the edge is still named first.
   P.row(3) = P.row(2);
-  EXPECT_EQ(message([&] {
+  EXPECT_EQ(mesh_error_message([&] {
               lapmesh::internal::assemble_pencil(build_topology(43, fin), P, lapmesh::Laplacian::cotangent,
                                                  lapmesh::Vertex_area::mixed, false, out);
             }),
             by_pattern);
-  EXPECT_EQ(message([&] {
+  EXPECT_EQ(mesh_error_message([&] {
               lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(43, fin), P,
                                                                    lapmesh::Vertex_area::mixed, 0, false, out);
             }),
             by_pattern);
-  EXPECT_NE(message([&] {
-              lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(42, double_cone),
+  EXPECT_NE(mesh_error_message([&] {
+              lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(42, cone),
                                                                    P.topRows(42), lapmesh::Vertex_area::mixed, 0,
                                                                    false, out);
             }).find("has zero area"),
@@ -1170,59 +1195,31 @@ TEST(Operators, ParallelCotangentRowsEqualTheSerialOnes)
 {
   using lapmesh::internal::build_corner_incidence;
   using lapmesh::internal::Positions;
-  struct Case
-  {
-    std::string name;
-    int n;
-    Working_array<int> tri;
-    Positions P;
-  };
-  std::vector<Case> cases;
-  const lapmesh::Triangle_soup torus = lapmesh::torus(40, 20), patch = lapmesh::plane_patch(30, 0.3);
-  for(const auto& [name, soup] : {std::make_pair("torus", torus), std::make_pair("plane patch", patch)}) {
-    auto [n, tri] = flat(soup);
-    cases.push_back({name, n, tri, soup_positions(soup)});
-  }
-  const auto flat_torus = flat(torus);
-  const int n = flat_torus.first;
-  const Working_array<int>& tri = flat_torus.second;
-  const Positions P = soup_positions(torus);
-  const int middle = int(tri.size() / 6);
-  Working_array<int> hole = tri, shuffled = tri;
+  const lapmesh::Triangle_soup torus = lapmesh::torus(40, 20);
+  std::vector<Triangles_case> cases = {triangles_case("torus", torus),
+                                       triangles_case("plane patch", lapmesh::plane_patch(30, 0.3)),
+                                       triangles_case("shuffled torus", shuffled(torus, 11))};
+  const Triangles_case closed = cases[0];
+  const int middle = int(closed.tri.size() / 6);
+  Working_array<int> hole = closed.tri, twice = closed.tri;
   hole.erase(hole.begin() + 3 * middle, hole.begin() + 3 * middle + 3);
-  cases.push_back({"torus with a hole", n, hole, P});
-  std::vector<int> label(static_cast<std::size_t>(n));
-  std::iota(label.begin(), label.end(), 0);
-  std::shuffle(label.begin(), label.end(), std::mt19937(11));
-  Positions shuffled_P(n, 3);
-  for(int v = 0; v < n; ++v) shuffled_P.row(label[std::size_t(v)]) = P.row(v);
-  for(int& v : shuffled) v = label[std::size_t(v)];
-  cases.push_back({"shuffled torus", n, shuffled, shuffled_P});
-  Working_array<int> double_cone;
-  for(int i = 0; i < 40; ++i) {  // hubs of 40 corners
-    const int j = 2 + i, k = 2 + (i + 1) % 40;
-    double_cone.insert(double_cone.end(), {0, j, k, 1, k, j});
-  }
-  cases.push_back({"double cone", 42, double_cone, circle_with_hubs(2, 40)});
-  Working_array<int> twice = tri, fin = double_cone;
-  twice.insert(twice.end(), tri.begin() + 3 * middle, tri.begin() + 3 * middle + 3);
+  twice.insert(twice.end(), closed.tri.begin() + 3 * middle, closed.tri.begin() + 3 * middle + 3);
+  cases.push_back({"torus with a hole", closed.n, hole, closed.P});
+  const Working_array<int> cone = double_cone(40);  // hubs of 40 corners
+  cases.push_back({"double cone", 42, cone, circle_with_hubs(2, 40)});
+  Working_array<int> fin = cone;
   fin.insert(fin.end(), {0, 2, 41});
-  const auto message = [](const auto& assemble) -> std::string {
-    try {
-      assemble();
-    } catch(const lapmesh::Mesh_error& e) {
-      return e.what();
-    }
-    return "no error";
-  };
+  Positions flattened = circle_with_hubs(2, 40);
+  flattened.row(3) = flattened.row(2);  // faces of zero area beside the fin
+  const std::vector<Triangles_case> refused = {{"a face given twice", closed.n, twice, closed.P},
+                                               {"a fin on the double cone", 42, fin, circle_with_hubs(2, 40)},
+                                               {"a fin and faces of zero area", 42, fin, flattened}};
 #ifdef CGAL_LINKED_WITH_TBB
   for(int threads : {3, 8}) {
     tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
     tbb::task_arena(threads).execute([&] {
       for(const auto& c : cases)
         for(const int rows_per_part : {7, 37, 1000}) {
-          const std::string with = c.name + ", " + std::to_string(threads) + " threads, parts of " +
-                                   std::to_string(rows_per_part);
           lapmesh::Laplacian_pencil serial, parallel;
           const std::size_t bound = std::size_t(c.n) + c.tri.size();
           lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
@@ -1230,31 +1227,18 @@ TEST(Operators, ParallelCotangentRowsEqualTheSerialOnes)
           lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
                                                                lapmesh::Vertex_area::mixed, bound, true, parallel,
                                                                [] {}, rows_per_part);
-          const std::size_t nnz = std::size_t(serial.stiffness.nonZeros());
-          ASSERT_EQ(std::size_t(parallel.stiffness.nonZeros()), nnz) << with;
-          EXPECT_TRUE(parallel.stiffness.isCompressed()) << with;
-          EXPECT_TRUE(std::equal(serial.stiffness.outerIndexPtr(), serial.stiffness.outerIndexPtr() + c.n + 1,
-                                 parallel.stiffness.outerIndexPtr()))
-            << with;
-          EXPECT_TRUE(std::equal(serial.stiffness.innerIndexPtr(), serial.stiffness.innerIndexPtr() + nnz,
-                                 parallel.stiffness.innerIndexPtr()))
-            << with;
-          EXPECT_TRUE(std::equal(serial.stiffness.valuePtr(), serial.stiffness.valuePtr() + nnz,
-                                 parallel.stiffness.valuePtr()))
-            << with;
-          EXPECT_TRUE(serial.mass == parallel.mass) << with;
+          expect_same_pencil_bits(serial, parallel,
+                                  c.name + ", " + std::to_string(threads) + " threads, parts of " +
+                                    std::to_string(rows_per_part));
         }
-      Positions flattened = circle_with_hubs(2, 40);
-      flattened.row(3) = flattened.row(2);  // faces of zero area beside the fin
-      for(const Case& c : {Case{"a face given twice", n, twice, P}, Case{"a fin on the double cone", 42, fin, circle_with_hubs(2, 40)},
-                           Case{"a fin and faces of zero area", 42, fin, flattened}}) {
+      for(const auto& c : refused) {
         lapmesh::Laplacian_pencil out;
-        const std::string serial = message([&] {
+        const std::string serial = mesh_error_message([&] {
           lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
                                                                lapmesh::Vertex_area::mixed, 0, false, out);
         });
         EXPECT_NE(serial.find("is non-manifold"), std::string::npos) << c.name << ": " << serial;
-        EXPECT_EQ(message([&] {
+        EXPECT_EQ(mesh_error_message([&] {
                     lapmesh::internal::assemble_cotangent_pencil_by_rows(build_corner_incidence(c.n, c.tri), c.P,
                                                                          lapmesh::Vertex_area::mixed, 0, true, out,
                                                                          [] {}, 7);

@@ -11,7 +11,7 @@
 // faulted in and zeroed by the kernel page by page (internal/mapping_cache.h). A sparse
 // factorisation (implicit smoothing, the eigenpairs) hands them back before it first writes its
 // factor, the largest block of such a call, rather than hold them beside it; the uniform stiffness,
-// which needs no working array, hands back the cached large ones before it allocates its matrix. A program that is
+// which needs no working array, hands them all back before it allocates its matrix. A program that is
 // done with large meshes, or keeps memory tight, hands them back with release_working_memory() or
 // lowers the limit. `LAPMESH_HUGE_PAGES=0` also keeps the working arrays in the C++ heap.
 #ifndef LAPMESH_HUGE_PAGES_H

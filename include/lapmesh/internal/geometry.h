@@ -452,8 +452,6 @@ inline Positions uniform_laplacian_sums(const Mesh_topology& t, const Positions&
   return out;
 }
 
-/// Writes the cotangent stiffness C (C_ij = 1/2 (cot alpha + cot beta), C_ii = -sum)
-/// into the values of the pattern of `t`, one row at a time (rows are independent).
 /// C_ij = 1/2 (cot alpha + cot beta) of the corners opposite the halfedges i->j and j->i (-1 where
 /// that side has no face).
 inline double cotangent_weight(const double* cot, const std::array<Index, 2>& c)
@@ -461,6 +459,8 @@ inline double cotangent_weight(const double* cot, const std::array<Index, 2>& c)
   return 0.5 * ((c[0] >= 0 ? cot[c[0]] : 0.0) + (c[1] >= 0 ? cot[c[1]] : 0.0));
 }
 
+/// Writes the cotangent stiffness C (C_ij = 1/2 (cot alpha + cot beta), C_ii = -sum)
+/// into the values of the pattern of `t`, one row at a time (rows are independent).
 inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geometry& g, double* values,
                                      bool parallel)
 {

@@ -52,9 +52,8 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
 /// goes. At its peak the call holds the triangles, the corner lists, the cotangents and the
 /// result, not the pattern's slots beside them. `max_nonzeros`: the most entries the matrix can
 /// need (the vertices plus twice graph_edge_count()).
-/// In parallel the rows are built in parts, each into its slice of the matrix. An interior vertex
-/// of a manifold mesh has as many neighbours as corners, which places each part's slice; where a
-/// part's rows do not fill it exactly (a boundary vertex, a face given twice), or serially where
+/// In parallel the rows are built in parts, each into its slice of the matrix, placed by
+/// interior_row_start(); where a part's rows do not fill it exactly (a boundary vertex, a face given twice), or serially where
 /// the matrix is too small, the rows are written again at the places that the first pass counted.
 /// `after_geometry()` as in assemble_pencil(), except that the triangles and the corner lists
 /// are read after it. `rows_per_part`: for tests only.
@@ -65,12 +64,15 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
                                        Index rows_per_part = vertices_per_part)
 {
   const Index n = t.num_vertices;
+  // The pattern's topology names a non-manifold edge; built only where there is one.
+  const auto name_non_manifold_edge = [&] {
+    require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
+  };
   Corner_geometry g;
   try {
     compute_corner_geometry(t, P, Corner_request{area, false, false}, parallel, g);
   } catch(const Mesh_error&) {
-    // A non-manifold edge is named before a degenerate face, as where the pattern is built first.
-    require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
+    name_non_manifold_edge();  // before a degenerate face, as where the pattern is built first
     throw;
   }
   out.mass = std::move(g.vertex_area);
@@ -83,7 +85,7 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
   std::vector<std::size_t> slice(num_parts + 1, 0);
   for(std::size_t p = 1; p <= num_parts; ++p) {
     const Index end = std::min(Index(p) * rows_per_part, n);
-    slice[p] = in_parts ? std::size_t(t.corner_begin[end]) + std::size_t(end) : max_nonzeros;
+    slice[p] = in_parts ? interior_row_start(t, end) : max_nonzeros;
   }
   std::vector<std::size_t> written(num_parts, 0);
   bool manifold = true;
@@ -101,11 +103,10 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
       written[std::size_t(p)] = rows.size;
       part_manifold[std::size_t(p)] = rows.manifold;
     });
-    manifold = std::find(part_manifold.begin(), part_manifold.end(), 0) == part_manifold.end();
+    manifold = std::all_of(part_manifold.begin(), part_manifold.end(), [](char m) { return m != 0; });
   };
   write_rows();
-  if(!manifold)  // the pattern's topology names the edge
-    require_manifold(build_topology(n, Working_array<Index>(t.triangles)), to_string(Laplacian::cotangent));
+  if(!manifold) name_non_manifold_edge();
   // Every part but the last must fill its slice; the last one may leave room (the bound's).
   bool in_place = true;
   for(std::size_t p = 0; p < num_parts; ++p) {

@@ -31,7 +31,7 @@
 // back (release_cached_large_arrays()); the small ones stay, as freed blocks in glibc's heap would,
 // until a sparse factor's values are first written, before which both go (hand_back_idle_memory()).
 // A call that takes nothing from the caches and allocates only its result (the uniform stiffness)
-// hands both back before it (release_cached_arrays()): the heap's freed blocks could serve that
+// hands both back before it (release_working_memory()): the heap's freed blocks could serve that
 // result, the cached mappings cannot.
 #ifndef LAPMESH_INTERNAL_MAPPING_CACHE_H
 #define LAPMESH_INTERNAL_MAPPING_CACHE_H

@@ -257,11 +257,6 @@ using Working_array = std::vector<T, Working_array_allocator<T>>;
 /// arrays of each iteration's assembly in afresh.
 inline void release_cached_large_arrays() noexcept { Mapping_cache::large_arrays().release(); }
 
-/// Hands the cached mappings of both sizes back to the system, before a call whose only large
-/// allocation is its result (an Eigen matrix), which no cached mapping can hold: freed blocks of
-/// glibc's heap would serve it, but cached mappings only lie beside it at its peak.
-inline void release_cached_arrays() noexcept { Mapping_cache::release_both(); }
-
 /// Empties `array` and hands its memory back to the system, not to the cache of mappings: for
 /// memory that allocations outside working arrays (a result's Eigen matrix) are about to need,
 /// and which the cache could not give them. A mapping under 4 MiB is cached all the same (see

@@ -387,6 +387,15 @@ constexpr Index corner_prefetch_distance = 3;
 /// the part's set-up, few enough to balance the threads' load.
 constexpr Index vertices_per_part = 16384;
 
+/// Where the row of vertex i would start in the pattern if every vertex before it were an interior
+/// vertex of a manifold mesh, whose row has as many neighbours as corners, plus its diagonal: the
+/// slice of the pattern that a part of a parallel build writes from its first vertex on. Exact on
+/// a closed manifold mesh.
+inline std::size_t interior_row_start(const Mesh_topology& t, Index i)
+{
+  return std::size_t(t.corner_begin[i]) + std::size_t(i);
+}
+
 /// What build_pattern_rows() counts while it writes rows, whatever they are written into: the
 /// entries written, the edges (each at its lower end) and the non-manifold edges' fans.
 struct Pattern_row_counts
@@ -639,16 +648,15 @@ inline Mesh_topology build_topology(Index num_vertices, Working_array<Index> tri
   const Index rows_per_part = in_parts ? vertices_per_part : std::max<Index>(n, 1);
   std::vector<Pattern_rows> parts(in_parts ? std::size_t(part_count(n, rows_per_part)) : 1, Pattern_rows(t));
   if(in_parts) {
-    // An interior vertex of a manifold mesh has as many neighbours as corners, so its row has
-    // corners + 1 slots: each part writes straight into its slice of the pattern at that
-    // offset. A part with a boundary or non-manifold vertex overflows its slice, or leaves it
-    // short, and is copied into place afterwards.
-    const std::size_t interior_slots = std::size_t(t.corner_begin[n]) + std::size_t(n);
+    // Each part writes straight into its slice of the pattern (interior_row_start()). A part
+    // with a boundary or non-manifold vertex overflows its slice, or leaves it short, and is
+    // copied into place afterwards.
+    const std::size_t interior_slots = interior_row_start(t, n);
     t.inner.resize(interior_slots);
     t.slot_corners.resize(interior_slots);
     for_each_part(n, rows_per_part, true, [&](Index p, Index first, Index last) {
-      const std::size_t base = std::size_t(t.corner_begin[first]) + std::size_t(first);
-      const std::size_t count = std::size_t(t.corner_begin[last]) + std::size_t(last) - base;
+      const std::size_t base = interior_row_start(t, first);
+      const std::size_t count = interior_row_start(t, last) - base;
       Pattern_rows& part = parts[std::size_t(p)];
       part.write_into(t.inner.data() + base, t.slot_corners.data() + base, count);
       build_pattern_rows(t, first, last, part);

@@ -120,12 +120,12 @@ bool uniform_stiffness_from_edges(const TriangleMesh& tm, RowMap row_of, VertexP
   // the counting sort's array then wait in the arrays of W that are written after them, which
   // spares two arrays as large beside W. W cannot come from the cache of working arrays, and the
   // call takes nothing else from it, so the cached mappings (another call's) go back to the system
-  // first.
+  // first: freed blocks of glibc's heap could serve W, cached mappings would only lie beside it.
   const std::size_t max_entries = std::size_t(n) + 2 * graph_edge_count(tm);
   if(max_entries > std::size_t(std::numeric_limits<Index>::max())) return false;
   const bool sorted_in_place = max_entries >= sorted_in_place_from;
   W.resize(n, n);
-  release_cached_arrays();
+  release_working_memory();
   W.resizeNonZeros(Index(max_entries));
   prepare_for_writing(W);
   Index* const outer = W.outerIndexPtr();
