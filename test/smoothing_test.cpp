@@ -220,6 +220,115 @@ TEST(Smoothing, TheLastFactorisationRunsWithoutTheCornerListsAndThePattern)
   }
 }
 
+// The explicit scheme on a fixed cotangent operator builds the operator's rows with their values
+// on a topology of corner incidence alone (the CGAL front end's extraction): the steps, the free
+// vertices and the stability bound must be those on the pattern's topology, to the bit, on a closed
+// and an open mesh, with the boundary fixed or free, with constraints, and in parallel, where the
+// rows are built in parts and an open mesh's parts are written again; the errors must be the same.
+TEST(Smoothing, ExplicitStepsOnRowsBuiltWithTheirValuesAreThoseOnThePattern)
+{
+  using namespace lapmesh::internal;
+  struct Case
+  {
+    std::string name;
+    Engine_arrays mesh;
+    bool fix_boundary;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"closed sphere", jittered_engine_arrays(lapmesh::icosphere(6), 0.002, 4), true});
+  cases.push_back({"open patch, boundary fixed", jittered_engine_arrays(bumpy_patch(140), 0.002, 5), true});
+  cases.push_back({"open patch, boundary free", jittered_engine_arrays(bumpy_patch(140), 0.002, 6), false});
+  const auto settings = [](bool fix_boundary, double lambda, bool compute_bound, bool parallel) {
+    Smoothing_settings s;
+    s.scheme = lapmesh::Smoothing_scheme::explicit_euler;
+    s.area = lapmesh::Vertex_area::mixed;
+    s.fixed_operator = true;
+    s.iterations = 3;
+    s.lambda = lambda;
+    s.fix_boundary = fix_boundary;
+    s.compute_stability_bound = compute_bound;
+    s.parallel = parallel;
+    return s;
+  };
+  for(const Case& c : cases) {
+    const Index n = c.mesh.n;
+    std::vector<char> constrained(std::size_t(n), 0);
+    for(Index i = 5; i < n; i += 11) constrained[std::size_t(i)] = 1;
+    for(bool compute_bound : {false, true}) {
+      Smoothing_settings s = settings(c.fix_boundary, 1.0, compute_bound, false);
+      ASSERT_TRUE(assembles_operator_by_rows(s));
+      // A time step well inside the Gershgorin bound of the pattern's run.
+      Positions probe = c.mesh.positions;
+      s.lambda = 0.5 * smooth_positions(build_topology(n, c.mesh.triangles), probe, constrained, s).stability_bound;
+      Positions on_pattern = c.mesh.positions;
+      const lapmesh::Smoothing_report expected = smooth_positions(build_topology(n, c.mesh.triangles), on_pattern, constrained, s);
+      const auto check = [&](const std::string& label, bool parallel) {
+        Smoothing_settings t = s;
+        t.parallel = parallel;
+        Mesh_topology incidence = build_corner_incidence(n, c.mesh.triangles);
+        ASSERT_FALSE(incidence.has_pattern());
+        Positions on_rows = c.mesh.positions;
+        const lapmesh::Smoothing_report got = smooth_positions_releasing_topology(incidence, on_rows, constrained, t);
+        EXPECT_TRUE(incidence.corner_begin.empty() && incidence.vertex_corners.empty()) << label;
+        EXPECT_EQ(got.free_vertices, expected.free_vertices) << label;
+        EXPECT_EQ(got.stability_bound, expected.stability_bound) << label;
+        EXPECT_EQ(got.stability_bound_exact, expected.stability_bound_exact) << label;
+        EXPECT_EQ(got.iterations, 3) << label;
+        EXPECT_GT((on_rows - c.mesh.positions).cwiseAbs().maxCoeff(), 1e-6) << label;
+        EXPECT_EQ((on_rows - on_pattern).cwiseAbs().maxCoeff(), 0.0) << label;
+      };
+      const std::string label = c.name + (compute_bound ? ", Lanczos bound" : ", Gershgorin bound");
+      check(label, false);
+#ifdef CGAL_LINKED_WITH_TBB
+      for(int threads : {2, 5}) {
+        tbb::global_control allowed(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+        tbb::task_arena(threads).execute([&] { check(label + ", " + std::to_string(threads) + " threads", true); });
+      }
+#else
+      FAIL() << "lapmesh was built without TBB (libtbb-dev): its parallel path is not tested";
+#endif
+    }
+  }
+  // The errors of either topology, in the same words: an edge with three faces, a zero-area face
+  // (both in one mesh: the edge is named first), and settings that need the pattern.
+  const Smoothing_settings s = settings(true, 1e-3, false, false);
+  const auto error_of = [&](Mesh_topology t, const Positions& P0) {
+    Positions P = P0;
+    try {
+      smooth_positions(t, P, {}, s);
+    } catch(const lapmesh::Mesh_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  Engine_arrays flap = jittered_engine_arrays(bumpy_patch(6), 0.0, 1);
+  const Index apex = flap.n++;
+  flap.positions.conservativeResize(flap.n, 3);
+  flap.positions.row(apex) = Eigen::RowVector3d(0.1, 0.1, 1.0);
+  // A third face on the edge of the first face's first two vertices.
+  flap.triangles.insert(flap.triangles.end(), {flap.triangles[0], flap.triangles[1], apex});
+  Engine_arrays flat_face = flap;
+  flat_face.positions.row(flat_face.triangles[2]) =
+    0.5 * (flat_face.positions.row(flat_face.triangles[0]) + flat_face.positions.row(flat_face.triangles[1]));
+  for(const Engine_arrays* a : {&flap, &flat_face}) {
+    const std::string expected = error_of(build_topology(a->n, a->triangles), a->positions);
+    EXPECT_NE(expected.find("non-manifold"), std::string::npos) << expected;
+    EXPECT_EQ(error_of(build_corner_incidence(a->n, a->triangles), a->positions), expected);
+  }
+  Engine_arrays degenerate = jittered_engine_arrays(bumpy_patch(6), 0.0, 1);
+  degenerate.positions.row(degenerate.triangles[2]) =
+    0.5 * (degenerate.positions.row(degenerate.triangles[0]) + degenerate.positions.row(degenerate.triangles[1]));
+  const std::string zero_area = error_of(build_topology(degenerate.n, degenerate.triangles), degenerate.positions);
+  EXPECT_NE(zero_area.find("zero area"), std::string::npos) << zero_area;
+  EXPECT_EQ(error_of(build_corner_incidence(degenerate.n, degenerate.triangles), degenerate.positions), zero_area);
+  Smoothing_settings rebuilt = s;
+  rebuilt.fixed_operator = false;
+  EXPECT_FALSE(assembles_operator_by_rows(rebuilt));
+  Positions P = degenerate.positions;
+  EXPECT_THROW(smooth_positions(build_corner_incidence(degenerate.n, degenerate.triangles), P, {}, rebuilt),
+               std::logic_error);
+}
+
 // The denoising study measures the positions in the progress callback: after each explicit step
 // they must hold that step's result, and the run without a callback (whose steps alternate
 // between the positions and an array of the engine's) must end at the same positions, to the

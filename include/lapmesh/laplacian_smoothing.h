@@ -97,7 +97,6 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   using CGAL::parameters::get_parameter;
   using CGAL::parameters::is_default_parameter;
 
-  auto mesh = extract_mesh(tm, np, Topology_detail::pattern, is_parallel<ConcurrencyTag>());
   Smoothing_settings s;
   s.scheme = scheme;
   s.laplacian = choose_laplacian(np);
@@ -151,6 +150,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
     };
   }
 
+  auto mesh = extract_mesh(tm, np, assembles_operator_by_rows(s) ? Topology_detail::incidence : Topology_detail::pattern,
+                           s.parallel);
   Smoothing_report report = mesh.naming_input_vertices(
     [&] { return smooth_positions_releasing_topology(mesh.topology, mesh.positions, constrained_vertices(mesh, np), s); });
 

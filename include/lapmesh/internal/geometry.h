@@ -483,12 +483,14 @@ inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geomet
 /// its indices lies beside the matrix. Row i's end goes to outer[i + 1], counted from the slice's
 /// start. Each entry is the value fill_cotangent_stiffness() writes there, the diagonal added up
 /// in the same order. Rows that would overrun the capacity are only counted (overran()); `size`
-/// is then the number of entries the slice needs.
+/// is then the number of entries the slice needs. With `on_boundary`, a boundary vertex's flag
+/// is set there.
 class Cotangent_rows : public Pattern_row_counts
 {
 public:
-  Cotangent_rows(const double* cot, Index* outer, Index* inner, double* values, std::size_t capacity)
-      : m_cot(cot), m_outer(outer), m_inner(inner), m_values(values), m_capacity(capacity)
+  Cotangent_rows(const double* cot, Index* outer, Index* inner, double* values, std::size_t capacity,
+                 char* on_boundary = nullptr)
+      : m_cot(cot), m_outer(outer), m_inner(inner), m_values(values), m_capacity(capacity), m_on_boundary(on_boundary)
   {}
 
   struct Entries
@@ -527,7 +529,10 @@ public:
     m_values[diagonal] = sum;
     m_outer[i + 1] = static_cast<Index>(size);
   }
-  void mark_boundary(Index) {}
+  void mark_boundary(Index i)
+  {
+    if(m_on_boundary) m_on_boundary[i] = 1;
+  }
   /// The cotangents of corner c's face, which the row of c's vertex reads.
   void prefetch_corner(Index c) const { prefetch(m_cot + c); }
   bool overran() const { return m_overran; }
@@ -538,6 +543,7 @@ private:
   Index* m_inner;
   double* m_values;
   std::size_t m_capacity;
+  char* m_on_boundary;
   std::size_t m_row_begin = 0;
   bool m_overran = false;
   std::vector<Index> m_scratch_inner;

@@ -46,22 +46,41 @@ void assemble_on_topology_pattern(const Mesh_topology& t, const Positions& P, La
   fill_cotangent_stiffness(t, g, stiffness_values(), parallel);
 }
 
+/// Where assemble_cotangent_rows() writes a matrix's compressed rows.
+struct Row_arrays
+{
+  Index* outer;  ///< the rows' ends at outer[1 .. n]
+  Index* inner;
+  double* values;
+};
+
+/// What assemble_cotangent_rows() found in the rows it wrote.
+struct Cotangent_row_counts
+{
+  std::size_t nonzeros = 0;  ///< the entries written, outer[n]
+  Index num_edges = 0;
+  Index num_boundary_edges = 0;
+};
+
 /// Assembles the cotangent (S, M) on a topology of corner incidence alone (build_corner_incidence():
-/// no pattern): the corner geometry first, then the pattern's rows built with their values
-/// straight into the matrix (Cotangent_rows), which finds the edges and any non-manifold one as it
-/// goes. At its peak the call holds the triangles, the corner lists, the cotangents and the
-/// result, not the pattern's slots beside them. `max_nonzeros`: the most entries the matrix can
-/// need (the vertices plus twice graph_edge_count()).
-/// In parallel the rows are built in parts, each into its slice of the matrix, placed by
-/// interior_row_start(); where a part's rows do not fill it exactly (a boundary vertex, a face given twice), or serially where
-/// the matrix is too small, the rows are written again at the places that the first pass counted.
-/// `after_geometry()` as in assemble_pencil(), except that the triangles and the corner lists
-/// are read after it. `rows_per_part`: for tests only.
-template <typename AfterGeometry = void (*)()>
-void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
-                                       std::size_t max_nonzeros, bool parallel, Laplacian_pencil& out,
-                                       const AfterGeometry& after_geometry = [] {},
-                                       Index rows_per_part = vertices_per_part)
+/// no pattern): the corner geometry first, M into `mass`, then the pattern's rows built with their
+/// values straight into the arrays that `size_rows(capacity, in_parts)` sizes for `capacity`
+/// entries and returns (Row_arrays; called again where the rows are written a second time), which
+/// finds the edges, the boundary vertices (flagged in `on_boundary` when given) and any
+/// non-manifold edge as it goes. At its peak the call holds the triangles, the corner lists, the
+/// cotangents and the result, not the pattern's slots beside them. `max_nonzeros`: at least the
+/// entries the matrix needs where no row overflows (a larger one is written again).
+/// In parallel the rows are built in parts, each into its slice of the arrays, placed by
+/// interior_row_start(); where a part's rows do not fill it exactly (a boundary vertex, a face
+/// given twice), or serially where the capacity is too small, the rows are written again at the
+/// places that the first pass counted. `after_geometry()` as in assemble_pencil(), except that the
+/// triangles and the corner lists are read after it. `rows_per_part`: for tests only.
+template <typename SizeRows, typename AfterGeometry = void (*)()>
+Cotangent_row_counts assemble_cotangent_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
+                                             std::size_t max_nonzeros, bool parallel, Eigen::VectorXd& mass,
+                                             const SizeRows& size_rows, char* on_boundary = nullptr,
+                                             const AfterGeometry& after_geometry = [] {},
+                                             Index rows_per_part = vertices_per_part)
 {
   const Index n = t.num_vertices;
   // The pattern's topology names a non-manifold edge; built only where there is one.
@@ -75,58 +94,79 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
     name_non_manifold_edge();  // before a degenerate face, as where the pattern is built first
     throw;
   }
-  out.mass = std::move(g.vertex_area);
+  mass = std::move(g.vertex_area);
   after_geometry();
   // One thread gains nothing from parts: a single part takes all rows.
   const bool in_parts = thread_count(parallel) > 1 && n > rows_per_part;
   if(!in_parts) rows_per_part = std::max<Index>(n, 1);
   const std::size_t num_parts = std::size_t(part_count(n, rows_per_part));
-  // Where each part's slice starts; the last entry is the matrix's size.
+  // Where each part's slice starts; the last entry is the arrays' capacity.
   std::vector<std::size_t> slice(num_parts + 1, 0);
   for(std::size_t p = 1; p <= num_parts; ++p) {
     const Index end = std::min(Index(p) * rows_per_part, n);
     slice[p] = in_parts ? interior_row_start(t, end) : max_nonzeros;
   }
-  std::vector<std::size_t> written(num_parts, 0);
-  bool manifold = true;
+  std::vector<Pattern_row_counts> counts(num_parts);
+  Index* outer = nullptr;
   const auto write_rows = [&] {
-    release(out.stiffness);  // a matrix written again is sized afresh, not copied
-    out.stiffness.resize(n, n);
-    out.stiffness.resizeNonZeros(static_cast<Index>(slice[num_parts]));
-    prepare_for_writing(out.stiffness, in_parts);
-    std::vector<char> part_manifold(num_parts, 1);
+    const Row_arrays arrays = size_rows(slice[num_parts], in_parts);
+    outer = arrays.outer;
     for_each_part(n, rows_per_part, in_parts, [&](Index p, Index first, Index last) {
       const std::size_t at = slice[std::size_t(p)];
-      Cotangent_rows rows(g.cot_values(), out.stiffness.outerIndexPtr(), out.stiffness.innerIndexPtr() + at,
-                          out.stiffness.valuePtr() + at, slice[std::size_t(p) + 1] - at);
+      Cotangent_rows rows(g.cot_values(), arrays.outer, arrays.inner + at, arrays.values + at,
+                          slice[std::size_t(p) + 1] - at, on_boundary);
       build_pattern_rows(t, first, last, rows);
-      written[std::size_t(p)] = rows.size;
-      part_manifold[std::size_t(p)] = rows.manifold;
+      counts[std::size_t(p)] = std::move(rows);
     });
-    manifold = std::all_of(part_manifold.begin(), part_manifold.end(), [](char m) { return m != 0; });
   };
   write_rows();
-  if(!manifold) name_non_manifold_edge();
+  if(!std::all_of(counts.begin(), counts.end(), [](const Pattern_row_counts& c) { return c.manifold; }))
+    name_non_manifold_edge();
   // Every part but the last must fill its slice; the last one may leave room (the bound's).
   bool in_place = true;
   for(std::size_t p = 0; p < num_parts; ++p) {
     const std::size_t room = slice[p + 1] - slice[p];
-    in_place = in_place && (p + 1 < num_parts ? written[p] == room : written[p] <= room);
+    in_place = in_place && (p + 1 < num_parts ? counts[p].size == room : counts[p].size <= room);
   }
   if(!in_place) {
-    for(std::size_t p = 0; p < num_parts; ++p) slice[p + 1] = slice[p] + written[p];
+    for(std::size_t p = 0; p < num_parts; ++p) slice[p + 1] = slice[p] + counts[p].size;
     write_rows();
   }
   // Each part counted its rows' ends from its slice's start.
-  Index* const outer = out.stiffness.outerIndexPtr();
   outer[0] = 0;
   for_each_part(n, rows_per_part, in_parts, [&](Index p, Index first, Index last) {
     const Index base = static_cast<Index>(slice[std::size_t(p)]);
     if(base > 0)
       for(Index i = first; i < last; ++i) outer[i + 1] += base;
   });
-  // Where the graph had more edges than its faces.
-  out.stiffness.data().resize(static_cast<Index>(num_parts > 0 ? slice[num_parts - 1] + written[num_parts - 1] : 0));
+  Cotangent_row_counts found;
+  found.nonzeros = num_parts > 0 ? slice[num_parts - 1] + counts[num_parts - 1].size : 0;
+  for(const Pattern_row_counts& c : counts) {
+    found.num_edges += c.num_edges;
+    found.num_boundary_edges += c.num_boundary_edges;
+  }
+  return found;
+}
+
+/// assemble_cotangent_rows() into a pencil: S into out.stiffness, sized for `max_nonzeros` (the
+/// vertices plus twice graph_edge_count()), then cut to the entries written, where the graph had
+/// more edges than its faces.
+template <typename AfterGeometry = void (*)()>
+void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
+                                       std::size_t max_nonzeros, bool parallel, Laplacian_pencil& out,
+                                       const AfterGeometry& after_geometry = [] {},
+                                       Index rows_per_part = vertices_per_part)
+{
+  const auto size_rows = [&](std::size_t capacity, bool in_parts) {
+    release(out.stiffness);  // a matrix written again is sized afresh, not copied
+    out.stiffness.resize(t.num_vertices, t.num_vertices);
+    out.stiffness.resizeNonZeros(static_cast<Index>(capacity));
+    prepare_for_writing(out.stiffness, in_parts);
+    return Row_arrays{out.stiffness.outerIndexPtr(), out.stiffness.innerIndexPtr(), out.stiffness.valuePtr()};
+  };
+  const Cotangent_row_counts found = assemble_cotangent_rows(t, P, area, max_nonzeros, parallel, out.mass, size_rows,
+                                                             nullptr, after_geometry, rows_per_part);
+  out.stiffness.data().resize(static_cast<Index>(found.nonzeros));
 }
 
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a

@@ -476,7 +476,7 @@ std::size_t graph_edge_count(const Graph& tm)
 /// (every operator), the corners alone (build_corner_topology(): angles, areas and their
 /// gathers), or only the triangles and each vertex's corners (build_corner_incidence(): no
 /// boundary flags, no edge counts, not checked for manifold edges), for a caller that finds
-/// those as it builds the pattern's rows itself (assemble_cotangent_pencil_by_rows()).
+/// those as it builds the pattern's rows itself (assemble_cotangent_rows()).
 enum class Topology_detail { pattern, corners, incidence };
 
 /// The order of a corners-only extraction's vertices and faces.

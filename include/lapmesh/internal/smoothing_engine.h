@@ -1,7 +1,9 @@
 // Internal: the array-based engine behind laplacian_smoothing.h.
 //
 // Positions live in an n x 3 row-major matrix; the operator (S, M) is assembled into the
-// fixed pattern of the topology (values rewritten in place, never re-allocated). Fixed
+// fixed pattern of the topology (values rewritten in place, never re-allocated), or, for the
+// explicit scheme on a fixed cotangent operator, assembled once, its rows built with their
+// values on a topology of corner incidence alone (assembles_operator_by_rows()). Fixed
 // vertices (boundary + user constraints) are Dirichlet constraints: only the free block is
 // stepped or solved, the fixed positions are never written, so they stay bitwise equal.
 //
@@ -86,6 +88,17 @@ struct Smoothing_settings
   Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
 
+/// Whether a smoothing run with settings `s` builds its operator's rows itself, with their values
+/// (assemble_cotangent_rows()), on a topology of corner incidence alone (build_corner_incidence()),
+/// which a caller may then hand it instead of one with the pattern: the explicit scheme on a
+/// fixed cotangent operator, assembled once, which refills no slot of a pattern, and without a
+/// restoration, whose checks read the boundary before the operator is assembled.
+inline bool assembles_operator_by_rows(const Smoothing_settings& s)
+{
+  return s.scheme == Smoothing_scheme::explicit_euler && s.laplacian == Laplacian::cotangent && s.fixed_operator &&
+         !s.restore_volume && !s.restore_area;
+}
+
 /// The face with the smallest area / (longest edge)^2, and that ratio (0 for a segment).
 inline std::pair<Index, double> flattest_face(const Mesh_topology& t, const Positions& P)
 {
@@ -142,7 +155,9 @@ public:
     : m_t(t), m_P(P), m_s(s), m_releasable_topology(releasable)
   {}
 
-  /// `fixed[i]` != 0 marks a user-constrained vertex; boundary vertices are added here.
+  /// `fixed[i]` != 0 marks a user-constrained vertex; boundary vertices are added here. A
+  /// topology without the pattern (has_pattern() false) takes settings that
+  /// assembles_operator_by_rows(); others throw std::logic_error.
   Smoothing_report run(const std::vector<char>& fixed)
   {
     init(fixed);
@@ -177,8 +192,13 @@ private:
   void init(const std::vector<char>& fixed)
   {
     check_settings(m_s);
+    if(!m_t.has_pattern() && !assembles_operator_by_rows(m_s))
+      throw std::logic_error("smoothing: these settings need a topology with the pattern (build_topology())");
+    // Rows built with their values tell the boundary: the operator comes first.
+    if(builds_operator_rows()) assemble_first_operator();
     const Index n = m_t.num_vertices;
-    m_free_mask = free_vertex_mask(m_t, m_s.fix_boundary, fixed);
+    m_free_mask = builds_operator_rows() ? free_vertex_mask(n, m_on_boundary, m_s.fix_boundary, fixed)
+                                         : free_vertex_mask(m_t, m_s.fix_boundary, fixed);
     const Index nf = Index(std::count(m_free_mask.begin(), m_free_mask.end(), char(1)));
     m_report.free_vertices = std::size_t(nf);
     if(m_s.restore_volume && m_s.restore_area)
@@ -197,16 +217,20 @@ private:
                           : m_s.restore_area ? Shape_restoration::Measure::area
                                              : Shape_restoration::Measure::none,
                           m_t, m_P);
-
-    const auto t0 = Clock::now();
-    assemble_operator();
-    require_positive_mass(m_s.laplacian, m_pencil.mass, m_s.area);
-    m_report.assembly_seconds += seconds_since(t0);
+    if(!builds_operator_rows()) assemble_first_operator();
 
     const bool geometric = m_s.laplacian != Laplacian::uniform;
     // What must be recomputed each iteration from the current positions.
     m_rebuild_stiffness = geometric && !m_s.fixed_operator && m_s.scheme != Smoothing_scheme::conformal;
     m_rebuild = geometric && !m_s.fixed_operator;
+  }
+
+  void assemble_first_operator()
+  {
+    const auto t0 = Clock::now();
+    assemble_operator();
+    require_positive_mass(m_s.laplacian, m_pencil.mass, m_s.area);
+    m_report.assembly_seconds += seconds_since(t0);
   }
 
   /// Explicit: the stability bound. Implicit: the free block, its scaling and its analysis.
@@ -262,6 +286,10 @@ private:
   /// into the factor's memory (factor_memory_for_stiffness()).
   void assemble_operator()
   {
+    if(builds_operator_rows()) {
+      assemble_operator_rows();
+      return;
+    }
     m_stiffness_in_factor = factor_memory_for_stiffness();
     if(m_stiffness_in_factor) {  // the corner cotangents after S's values
       double* values = m_stiffness_in_factor;
@@ -277,6 +305,32 @@ private:
       m_stiffness_values.resize(std::size_t(m_t.num_nonzeros()));
       return m_stiffness_values.data();
     });
+  }
+
+  /// Whether the operator's rows are built here (assembles_operator_by_rows()): the topology came
+  /// without the pattern.
+  bool builds_operator_rows() const { return !m_t.has_pattern(); }
+
+  /// S by rows into m_operator_outer, m_operator_inner and m_stiffness_values, M into m_pencil, the
+  /// boundary flags into m_on_boundary. Once the rows are built, the corner lists of a releasable
+  /// topology are read no more.
+  void assemble_operator_rows()
+  {
+    const Index n = m_t.num_vertices;
+    m_on_boundary.assign(std::size_t(n), 0);
+    // A row holds its vertex and each neighbour: as many neighbours as corners around an interior
+    // vertex of manifold edges, one more around a boundary vertex. Rows that need more (a vertex
+    // where several fans meet) are written again at their counted places.
+    const std::size_t max_nonzeros = 2 * std::size_t(n) + 3 * std::size_t(m_t.num_faces);
+    const auto size_rows = [&](std::size_t capacity, bool) {
+      m_operator_outer.resize(std::size_t(n) + 1);
+      m_operator_inner.resize(capacity);
+      m_stiffness_values.resize(capacity);
+      return Row_arrays{m_operator_outer.data(), m_operator_inner.data(), m_stiffness_values.data()};
+    };
+    assemble_cotangent_rows(m_t, m_P, m_s.area, max_nonzeros, m_s.parallel, m_pencil.mass, size_rows,
+                            m_on_boundary.data());
+    if(m_releasable_topology) m_releasable_topology->release_corner_lists();
   }
 
   /// Where a rebuilt cotangent stiffness goes once a step has been solved: into the factor's
@@ -325,6 +379,9 @@ private:
   /// The arrays of the operator that the explicit scheme reads.
   Pencil_arrays operator_arrays() const
   {
+    if(builds_operator_rows())
+      return Pencil_arrays(m_t.num_vertices, m_operator_outer.data(), m_operator_inner.data(),
+                           m_stiffness_values.data(), m_pencil.mass);
     if(keeps_values_on_topology_pattern()) return Pencil_arrays(m_t, m_stiffness_values.data(), m_pencil.mass);
     return Pencil_arrays(m_pencil);
   }
@@ -639,7 +696,9 @@ private:
   std::vector<char> m_free_mask;
   std::optional<Shape_restoration> m_restoration;
   Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S
-  Working_array<double> m_stiffness_values;  ///< S on the topology's pattern (explicit scheme)
+  Working_array<double> m_stiffness_values;  ///< S on the topology's pattern or on m_operator_* (explicit scheme)
+  Working_array<Index> m_operator_outer, m_operator_inner;  ///< S's rows where builds_operator_rows()
+  std::vector<char> m_on_boundary;                         ///< their boundary flags
   double* m_stiffness_in_factor = nullptr;   ///< S on the topology's pattern, in the factor's memory
   bool m_rebuild_stiffness = false;
   bool m_rebuild = false;  ///< the operator (or its mass) follows the positions

@@ -25,16 +25,24 @@ namespace internal {
 
 /// The free vertices (1) of a smoothing system: a vertex is fixed (0) when `constrained[i]` != 0
 /// (a shorter or empty `constrained` leaves the rest unconstrained) or when it lies on the
-/// boundary and `fix_boundary` is set.
-inline std::vector<char> free_vertex_mask(const Mesh_topology& t, bool fix_boundary,
+/// boundary (`on_boundary[i]` != 0, one flag for each of the n vertices, read only with
+/// `fix_boundary`) and `fix_boundary` is set.
+inline std::vector<char> free_vertex_mask(Index n, const std::vector<char>& on_boundary, bool fix_boundary,
                                           const std::vector<char>& constrained = {})
 {
-  std::vector<char> free_mask(std::size_t(t.num_vertices));
-  for(Index i = 0; i < t.num_vertices; ++i) {
-    const bool fixed = (std::size_t(i) < constrained.size() && constrained[i]) || (fix_boundary && t.on_boundary[i]);
+  std::vector<char> free_mask(static_cast<std::size_t>(n));
+  for(Index i = 0; i < n; ++i) {
+    const bool fixed = (std::size_t(i) < constrained.size() && constrained[i]) || (fix_boundary && on_boundary[i]);
     free_mask[i] = !fixed;
   }
   return free_mask;
+}
+
+/// free_vertex_mask() with the boundary flags of the topology t.
+inline std::vector<char> free_vertex_mask(const Mesh_topology& t, bool fix_boundary,
+                                          const std::vector<char>& constrained = {})
+{
+  return free_vertex_mask(t.num_vertices, t.on_boundary, fix_boundary, constrained);
 }
 
 /// The arrays of a pencil that the explicit scheme reads: S by compressed rows (S is symmetric,
@@ -58,8 +66,11 @@ struct Pencil_arrays
     assert(pencil.stiffness.isCompressed() && pencil.stiffness.rows() == size);
   }
   Pencil_arrays(const Mesh_topology& t, const double* stiffness_values, const Eigen::VectorXd& mass_diagonal)
-    : size(t.num_vertices), outer(t.outer.data()), inner(t.inner.data()), values(stiffness_values),
-      mass(mass_diagonal.data())
+    : Pencil_arrays(t.num_vertices, t.outer.data(), t.inner.data(), stiffness_values, mass_diagonal)
+  {}
+  Pencil_arrays(Index rows, const Index* row_ends, const Index* columns, const double* stiffness_values,
+                const Eigen::VectorXd& mass_diagonal)
+    : size(rows), outer(row_ends), inner(columns), values(stiffness_values), mass(mass_diagonal.data())
   {}
   Index nonzeros() const { return outer ? outer[size] : 0; }
 };
