@@ -54,14 +54,6 @@ struct Row_arrays
   double* values;
 };
 
-/// What assemble_cotangent_rows() found in the rows it wrote.
-struct Cotangent_row_counts
-{
-  std::size_t nonzeros = 0;  ///< the entries written, outer[n]
-  Index num_edges = 0;
-  Index num_boundary_edges = 0;
-};
-
 /// Assembles the cotangent (S, M) on a topology of corner incidence alone (build_corner_incidence():
 /// no pattern): the corner geometry first, M into `mass`, then the pattern's rows built with their
 /// values straight into the arrays that `size_rows(capacity, in_parts)` sizes for `capacity`
@@ -75,8 +67,9 @@ struct Cotangent_row_counts
 /// given twice), or serially where the capacity is too small, the rows are written again at the
 /// places that the first pass counted. `after_geometry()` as in assemble_pencil(), except that the
 /// triangles and the corner lists are read after it. `rows_per_part`: for tests only.
+/// Returns the number of entries written (outer[n]).
 template <typename SizeRows, typename AfterGeometry = void (*)()>
-Cotangent_row_counts assemble_cotangent_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
+std::size_t assemble_cotangent_rows(const Mesh_topology& t, const Positions& P, Vertex_area area,
                                              std::size_t max_nonzeros, bool parallel, Eigen::VectorXd& mass,
                                              const SizeRows& size_rows, char* on_boundary = nullptr,
                                              const AfterGeometry& after_geometry = [] {},
@@ -116,7 +109,7 @@ Cotangent_row_counts assemble_cotangent_rows(const Mesh_topology& t, const Posit
       Cotangent_rows rows(g.cot_values(), arrays.outer, arrays.inner + at, arrays.values + at,
                           slice[std::size_t(p) + 1] - at, on_boundary);
       build_pattern_rows(t, first, last, rows);
-      counts[std::size_t(p)] = std::move(rows);
+      counts[std::size_t(p)] = std::move(rows);  // what the part counted, without its writer
     });
   };
   write_rows();
@@ -139,13 +132,7 @@ Cotangent_row_counts assemble_cotangent_rows(const Mesh_topology& t, const Posit
     if(base > 0)
       for(Index i = first; i < last; ++i) outer[i + 1] += base;
   });
-  Cotangent_row_counts found;
-  found.nonzeros = num_parts > 0 ? slice[num_parts - 1] + counts[num_parts - 1].size : 0;
-  for(const Pattern_row_counts& c : counts) {
-    found.num_edges += c.num_edges;
-    found.num_boundary_edges += c.num_boundary_edges;
-  }
-  return found;
+  return num_parts > 0 ? slice[num_parts - 1] + counts[num_parts - 1].size : 0;
 }
 
 /// assemble_cotangent_rows() into a pencil: S into out.stiffness, sized for `max_nonzeros` (the
@@ -164,9 +151,9 @@ void assemble_cotangent_pencil_by_rows(const Mesh_topology& t, const Positions& 
     prepare_for_writing(out.stiffness, in_parts);
     return Row_arrays{out.stiffness.outerIndexPtr(), out.stiffness.innerIndexPtr(), out.stiffness.valuePtr()};
   };
-  const Cotangent_row_counts found = assemble_cotangent_rows(t, P, area, max_nonzeros, parallel, out.mass, size_rows,
-                                                             nullptr, after_geometry, rows_per_part);
-  out.stiffness.data().resize(static_cast<Index>(found.nonzeros));
+  const std::size_t nonzeros = assemble_cotangent_rows(t, P, area, max_nonzeros, parallel, out.mass, size_rows,
+                                                       nullptr, after_geometry, rows_per_part);
+  out.stiffness.data().resize(static_cast<Index>(nonzeros));
 }
 
 /// Assembles (S, M) for the positions P on the topology t. When `out` already holds a
