@@ -1101,18 +1101,6 @@ void expect_same_pencil_bits(const lapmesh::Laplacian_pencil& expected, const la
   EXPECT_TRUE(actual.mass == expected.mass) << what;
 }
 
-/// The message of the Mesh_error that `run` throws, or "no error".
-template <typename Run>
-std::string mesh_error_message(const Run& run)
-{
-  try {
-    run();
-  } catch(const lapmesh::Mesh_error& e) {
-    return e.what();
-  }
-  return "no error";
-}
-
 } // namespace
 
 // The serial cotangent pencil builds the pattern's rows with their values straight into the

@@ -4,6 +4,7 @@
 #ifndef LAPMESH_TEST_HELPERS_H
 #define LAPMESH_TEST_HELPERS_H
 
+#include <lapmesh/errors.h>
 #include <lapmesh/shapes.h>
 
 #include <CGAL/Polyhedron_3.h>
@@ -72,6 +73,18 @@ inline std::string scratch_dir()
 }
 
 /// The whole content of a file (empty when it cannot be read).
+/// The message of the Mesh_error that `run` throws, or "no error".
+template <typename Run>
+std::string mesh_error_message(const Run& run)
+{
+  try {
+    run();
+  } catch(const lapmesh::Mesh_error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 inline std::string read_file(const std::string& path)
 {
   std::ifstream in(path, std::ios::binary);

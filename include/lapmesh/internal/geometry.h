@@ -482,8 +482,8 @@ inline void fill_cotangent_stiffness(const Mesh_topology& t, const Corner_geomet
 /// appended after the one before, so that neither the pattern's corner slots nor a second copy of
 /// its indices lies beside the matrix. Row i's end goes to outer[i + 1], counted from the slice's
 /// start. Each entry is the value fill_cotangent_stiffness() writes there, the diagonal added up
-/// in the same order. Rows that would overrun the capacity are only counted (overran()); `size`
-/// is then the number of entries the slice needs. With `on_boundary`, a boundary vertex's flag
+/// in the same order. Rows that would overrun the capacity are only counted; `size` is then the
+/// number of entries the slice needs. With `on_boundary`, a boundary vertex's flag
 /// is set there.
 class Cotangent_rows : public Pattern_row_counts
 {
@@ -535,7 +535,6 @@ public:
   }
   /// The cotangents of corner c's face, which the row of c's vertex reads.
   void prefetch_corner(Index c) const { prefetch(m_cot + c); }
-  bool overran() const { return m_overran; }
 
 private:
   const double* m_cot;
