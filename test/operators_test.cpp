@@ -19,8 +19,16 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <tuple>
+#include <utility>
+#include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
+#endif
 
 #ifdef CGAL_LINKED_WITH_TBB
 #include <tbb/global_control.h>
@@ -437,6 +445,43 @@ TEST(Operators, UniformStiffnessHandsBackOtherCallsCachedArraysBeforeItsMatrix)
   EXPECT_EQ(Eigen::MatrixXd(welded - reference).cwiseAbs().maxCoeff(), 0.0);
   lapmesh::release_working_memory();
 }
+
+#if defined(__linux__)
+// Populated by several threads, one huge page per call, a block has the same pages present as
+// after one call for the whole block: the pieces' ends leave no page of it out and reach no page
+// beyond it. The block starts and ends inside pages and huge pages.
+TEST(Operators, PopulatingABlockInPiecesMakesItsPagesPresentAsOneCallDoes)
+{
+  const std::size_t page = std::size_t(sysconf(_SC_PAGESIZE));
+  const std::size_t mapped = std::size_t(48) << 20;
+  const std::size_t offset = 3 * page + 123, bytes = (std::size_t(40) << 20) + 5000;  // over the 32 MiB populated
+  const std::size_t first_page = offset / page, last_page = (offset + bytes - 1) / page;
+  // Pages present in the block, and in the whole mapping (where transparent huge pages are
+  // always on, both ways make the huge pages at the block's ends present whole).
+  const auto pages_present = [&](bool parallel) {
+    void* base = mmap(nullptr, mapped, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if(base == MAP_FAILED) throw std::runtime_error("mmap failed");
+    lapmesh::internal::populate_for_writing(static_cast<char*>(base) + offset, bytes, parallel);
+    std::vector<unsigned char> resident(mapped / page);
+    const int status = mincore(base, mapped, resident.data());
+    munmap(base, mapped);
+    if(status != 0) throw std::runtime_error("mincore failed");
+    std::pair<std::size_t, std::size_t> count{0, 0};
+    for(std::size_t k = 0; k < resident.size(); ++k) {
+      count.second += resident[k] & 1u;
+      if(k >= first_page && k <= last_page) count.first += resident[k] & 1u;
+    }
+    return count;
+  };
+  const auto one_call = pages_present(false);
+  // A kernel without MADV_POPULATE_WRITE (before Linux 5.14) makes none present either way.
+  EXPECT_TRUE(one_call.first == last_page - first_page + 1 || one_call.second == 0)
+    << one_call.first << " of " << last_page - first_page + 1;
+  const auto in_pieces = pages_present(true);
+  EXPECT_EQ(in_pieces.first, one_call.first);
+  EXPECT_EQ(in_pieces.second, one_call.second);
+}
+#endif
 
 // The edges' ends and the counting sort's array wait in the matrix's own arrays: a call
 // allocates no working array (which, freed, the cache would keep) beside its matrix, on either

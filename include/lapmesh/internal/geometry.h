@@ -559,8 +559,7 @@ inline void fill_uniform_stiffness(const Mesh_topology& t, double* values, bool 
 }
 
 /// A sparse matrix with the pattern of `t`, its values not set: fill_cotangent_stiffness() and
-/// fill_uniform_stiffness() each write every slot. Copied row by row, in parallel where asked,
-/// so that the pages of a large matrix are first touched by several threads.
+/// fill_uniform_stiffness() each write every slot. Copied row by row, in parallel where asked.
 template <typename SparseMatrix>
 void make_pattern_matrix(const Mesh_topology& t, SparseMatrix& S, bool parallel)
 {

@@ -27,7 +27,8 @@
 // memory too fragmented for 2 MiB pages), an Eigen result of at least 32 MiB that is written whole
 // right after it is sized has its pages made present by one madvise(MADV_POPULATE_WRITE) call
 // (Linux 5.14 on; an older kernel refuses it and nothing changes): the kernel still zeroes every
-// page, but without a trip through the fault handler for each one (prepare_for_writing()).
+// page, but without a trip through the fault handler for each one (prepare_for_writing()). Where
+// several threads write it, they make its pages present together, one call per huge page.
 //
 // Why prefetches: the passes over corners read the triangles and positions at the indices of
 // the neighbours, which on a large mesh miss the caches; the addresses are known a few
@@ -37,6 +38,7 @@
 
 #include <lapmesh/huge_pages.h>
 #include <lapmesh/internal/mapping_cache.h>
+#include <lapmesh/internal/parallel.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -291,8 +293,9 @@ void advise_huge_pages(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>&
 
 /// Makes the pages of [p, p + bytes), a fresh block of at least 32 MiB about to be written whole,
 /// present at once (see above). Not for a block that may stay partly unwritten: its pages would
-/// count in the process's memory all the same.
-inline void populate_for_writing(const void* p, std::size_t bytes) noexcept
+/// count in the process's memory all the same. `parallel`: one call per huge page of the block,
+/// spread over the threads, so that they zero the pages together.
+inline void populate_for_writing(const void* p, std::size_t bytes, bool parallel = false) noexcept
 {
 #if defined(__linux__)
 #ifdef MADV_POPULATE_WRITE
@@ -302,22 +305,35 @@ inline void populate_for_writing(const void* p, std::size_t bytes) noexcept
 #endif
   if(bytes < huge_page_advice_min_bytes) return;
   const std::uintptr_t page = system_page_bytes();
-  const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p), first = begin - begin % page;
-  madvise(reinterpret_cast<void*>(first), begin + bytes - first, populate_write);
+  const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(p) + bytes;
+  const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p) / page * page;
+  // Pieces on huge-page boundaries: no two threads fault in the same huge page.
+  const std::uintptr_t first_piece = round_down_to_huge_pages(begin);
+  const std::size_t pieces = parallel ? std::size_t((end - first_piece + huge_page_bytes - 1) / huge_page_bytes) : 1;
+  for_each_index(
+    pieces, parallel,
+    [&](std::size_t k) {
+      const std::uintptr_t from = k == 0 ? begin : first_piece + k * huge_page_bytes;
+      const std::uintptr_t to = k + 1 == pieces ? end : first_piece + (k + 1) * huge_page_bytes;
+      madvise(reinterpret_cast<void*>(from), to - from, populate_write);
+    },
+    std::size_t(1));
 #else
   (void)p;
   (void)bytes;
+  (void)parallel;
 #endif
 }
 
-/// A dense Eigen array, sized and about to be written whole: advise_huge_pages(), then, unless
-/// several threads write it (`parallel`: its pages are better faulted in by each thread where it
-/// writes), populate_for_writing().
+/// A dense Eigen array, sized and about to be written whole: advise_huge_pages(), then
+/// populate_for_writing(), by several threads where several write it (`parallel`): threads that
+/// fault the pages in as they write took longer than populating calls before them
+/// (doc/benchmarks.md).
 template <typename Derived>
 void prepare_for_writing(const Eigen::PlainObjectBase<Derived>& array, bool parallel = false) noexcept
 {
   advise_huge_pages(array);
-  if(!parallel) populate_for_writing(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()));
+  populate_for_writing(array.data(), sizeof(typename Derived::Scalar) * std::size_t(array.size()), parallel);
 }
 
 /// The values and inner indices of a sparse matrix sized by resizeNonZeros(), about to be written
@@ -326,10 +342,9 @@ template <typename Scalar, int Options, typename StorageIndex>
 void prepare_for_writing(const Eigen::SparseMatrix<Scalar, Options, StorageIndex>& matrix, bool parallel = false) noexcept
 {
   advise_huge_pages(matrix);
-  if(parallel) return;
   const std::size_t nnz = std::size_t(matrix.data().size());
-  populate_for_writing(matrix.valuePtr(), sizeof(Scalar) * nnz);
-  populate_for_writing(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz);
+  populate_for_writing(matrix.valuePtr(), sizeof(Scalar) * nnz, parallel);
+  populate_for_writing(matrix.innerIndexPtr(), sizeof(StorageIndex) * nnz, parallel);
 }
 
 /// Frees the storage of a sparse matrix, which becomes empty. Assigning an empty matrix would
