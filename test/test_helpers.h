@@ -72,7 +72,6 @@ inline std::string scratch_dir()
   return dir;
 }
 
-/// The whole content of a file (empty when it cannot be read).
 /// The message of the Mesh_error that `run` throws, or "no error".
 template <typename Run>
 std::string mesh_error_message(const Run& run)
@@ -85,6 +84,7 @@ std::string mesh_error_message(const Run& run)
   return "no error";
 }
 
+/// The whole content of a file (empty when it cannot be read).
 inline std::string read_file(const std::string& path)
 {
   std::ifstream in(path, std::ios::binary);

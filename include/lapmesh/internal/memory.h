@@ -43,6 +43,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -305,19 +306,15 @@ inline void populate_for_writing(const void* p, std::size_t bytes, bool parallel
 #endif
   if(bytes < huge_page_advice_min_bytes) return;
   const std::uintptr_t page = system_page_bytes();
-  const std::uintptr_t end = reinterpret_cast<std::uintptr_t>(p) + bytes;
   const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(p) / page * page;
-  // Pieces on huge-page boundaries: no two threads fault in the same huge page.
-  const std::uintptr_t first_piece = round_down_to_huge_pages(begin);
-  const std::size_t pieces = parallel ? std::size_t((end - first_piece + huge_page_bytes - 1) / huge_page_bytes) : 1;
-  for_each_index(
-    pieces, parallel,
-    [&](std::size_t k) {
-      const std::uintptr_t from = k == 0 ? begin : first_piece + k * huge_page_bytes;
-      const std::uintptr_t to = k + 1 == pieces ? end : first_piece + (k + 1) * huge_page_bytes;
-      madvise(reinterpret_cast<void*>(from), to - from, populate_write);
-    },
-    std::size_t(1));
+  // Pieces counted from the huge page that holds the first byte: no two threads fault in the same
+  // huge page.
+  const std::uintptr_t origin = round_down_to_huge_pages(begin);
+  const std::size_t span = std::size_t(reinterpret_cast<std::uintptr_t>(p) + bytes - origin);
+  for_each_part(span, parallel ? huge_page_bytes : span, parallel, [&](std::size_t, std::size_t from, std::size_t to) {
+    const std::uintptr_t first = std::max(begin, origin + from);
+    madvise(reinterpret_cast<void*>(first), origin + to - first, populate_write);
+  });
 #else
   (void)p;
   (void)bytes;
