@@ -71,6 +71,8 @@ public:
     m_spacing_factor = hausdorff_spacing;
     m_spacing = hausdorff_spacing * mean_edge_length(t, reference);
     m_reference_surface = Surface_distance(reference, t.triangles);
+    m_surface = m_reference_surface;
+    m_samples = Grid_samples(t, reference);
   }
 
   double diagonal() const { return m_diagonal; }
@@ -108,11 +110,11 @@ public:
     // The grid follows the larger of the two meshes' mean edge lengths, so that a blown-up
     // mesh (explicit steps above the stability bound) is not sampled with millions of points.
     const double spacing = std::max(m_spacing, m_spacing_factor * mean_edge_length(*m_t, P));
-    const Surface_distance surface(P, m_t->triangles);
-    const double spacing_ab = bounded_grid_spacing(*m_t, P, spacing);
-    const double spacing_ba = bounded_grid_spacing(*m_t, m_reference, spacing);
-    const double ab = sampled_one_sided_distance(*m_t, P, spacing_ab, m_reference_surface, m_parallel);
-    const double ba = sampled_one_sided_distance(*m_t, m_reference, spacing_ba, surface, m_parallel);
+    m_surface.refit(P, m_parallel);
+    const double spacing_ab = m_samples.bounded_spacing(P, spacing, m_parallel);
+    const double spacing_ba = m_samples.bounded_spacing(m_reference, spacing, m_parallel);
+    const double ab = m_samples.largest_distance(P, spacing_ab, m_reference_surface, m_parallel);
+    const double ba = m_samples.largest_distance(m_reference, spacing_ba, m_surface, m_parallel);
     d.hausdorff_distance = std::max(ab, ba) / m_diagonal;
     d.hausdorff_coarsening = std::max(spacing_ab, spacing_ba) / spacing;
     return d;
@@ -135,6 +137,8 @@ private:
   double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
   bool m_closed = false, m_parallel = false;
   Surface_distance m_reference_surface;  // the reference does not move: its search is built once
+  Surface_distance m_surface;            // the measured mesh's: the reference's, refitted each time
+  Grid_samples m_samples;                // of either mesh, in an order of the reference's faces
 };
 
 } // namespace internal

@@ -69,6 +69,17 @@ inline double squared_distance_to_triangle(const Point3& p, const Point3& a, con
   return (ap - v * ab - w * ac).squaredNorm();
 }
 
+/// (Morton code, index) of each centre, in the order of the codes, on the centres' bounding box.
+inline std::vector<std::pair<std::uint64_t, std::int32_t>> sorted_morton_keys(const std::vector<Point3>& centres)
+{
+  Box3 bounds;
+  for(const Point3& c : centres) bounds.extend(c);
+  std::vector<std::pair<std::uint64_t, std::int32_t>> keys(centres.size());
+  for(std::size_t i = 0; i < keys.size(); ++i) keys[i] = {morton_code(centres[i], bounds), std::int32_t(i)};
+  std::sort(keys.begin(), keys.end());
+  return keys;
+}
+
 /// A binary hierarchy over items: each node's box holds its items', a leaf holds at most four.
 /// The items are put in order along a Morton curve through their centres (one sort) and split
 /// where the codes' highest differing bit changes, as the cells of an octree; every item is read
@@ -87,11 +98,7 @@ struct Box_hierarchy
   /// The items in Morton order of their centres (the item at each position).
   std::vector<std::int32_t> order(const std::vector<Point3>& centres)
   {
-    Box3 bounds;
-    for(const Point3& c : centres) bounds.extend(c);
-    std::vector<std::pair<std::uint64_t, std::int32_t>> keys(centres.size());
-    for(std::size_t i = 0; i < keys.size(); ++i) keys[i] = {morton_code(centres[i], bounds), std::int32_t(i)};
-    std::sort(keys.begin(), keys.end());
+    const auto keys = sorted_morton_keys(centres);
     std::vector<std::int32_t> items(keys.size());
     m_codes.resize(keys.size());
     for(std::size_t k = 0; k < keys.size(); ++k) {
@@ -109,6 +116,24 @@ struct Box_hierarchy
     nodes.reserve(2 * m_codes.size());  // leaves of one to four items: fewer than 2n nodes
     if(!m_codes.empty()) build_node(box_of, 0, std::int32_t(m_codes.size()));
     m_codes = {};
+  }
+
+  /// The boxes again, for items that have moved; the tree is kept. box_of(k) as for build().
+  template <typename BoxOf>
+  void refit(const BoxOf& box_of)
+  {
+    // A node's children follow it: from the last node back, every child is fitted before its parent.
+    for(std::size_t n = nodes.size(); n-- > 0;) {
+      Node& node = nodes[n];
+      Box3 box;
+      if(node.right < 0) {
+        for(std::int32_t k = node.begin; k < node.end; ++k) box.extend(box_of(std::size_t(k)));
+      } else {
+        box = nodes[n + 1].box;
+        box.extend(nodes[std::size_t(node.right)].box);
+      }
+      node.box = box;
+    }
   }
 
 private:
@@ -149,16 +174,18 @@ private:
 
 /// Squared distances from points to the faces of a triangle mesh (any: with borders, non-manifold,
 /// with faces without area). Faces around a vertex of at least `fan_faces` faces go into that
-/// vertex's fan (the vertex of most faces among the three), searched by direction.
+/// vertex's fan (the vertex of most faces among the three), searched by direction. A mesh whose
+/// vertices move (the same faces) is refitted, not built again: the hierarchies keep their trees
+/// and take new boxes, and the distances found are the same as those of a new build.
 class Surface_distance
 {
 public:
   static constexpr Index fan_faces = 32;
+  using Corners = std::array<Index, 3>;
 
   Surface_distance() = default;
   Surface_distance(const Positions& P, const Working_array<Index>& triangles)
   {
-    using Corners = std::array<Index, 3>;
     const std::size_t num_faces = triangles.size() / 3;
     std::vector<Index> faces_of(std::size_t(P.rows()), 0);
     for(Index v : triangles) ++faces_of[std::size_t(v)];
@@ -201,27 +228,17 @@ public:
       std::vector<Point3> centres(faces.size());
       for(std::size_t i = 0; i < faces.size(); ++i) centres[i] = centre(faces[i]);
       const std::vector<std::int32_t> order = fan.hierarchy.order(centres);
+      fan.corners.resize(faces.size());
       fan.triangles.resize(faces.size());
       fan.directions.resize(faces.size());
       for(std::size_t k = 0; k < order.size(); ++k) {
         const Corners& c = faces[std::size_t(order[k])];
+        fan.corners[k] = c;
         fan.triangles[k] = {point(c[0]), point(c[1]), point(c[2])};
         fan.directions[k] = direction_box(fan.triangles[k]);
       }
       fan.hierarchy.build([&](std::size_t k) { return box_of(fan.triangles[k]); });
-      // Each fan node also bounds the directions of its faces.
-      fan.node_directions.resize(fan.hierarchy.nodes.size());
-      for(std::size_t n = fan.hierarchy.nodes.size(); n-- > 0;) {
-        const auto& node = fan.hierarchy.nodes[n];
-        Box3 d;
-        if(node.right < 0) {
-          for(std::int32_t k = node.begin; k < node.end; ++k) d.extend(fan.directions[std::size_t(k)]);
-        } else {
-          d = fan.node_directions[n + 1];
-          d.extend(fan.node_directions[std::size_t(node.right)]);
-        }
-        fan.node_directions[n] = d;
-      }
+      fit_node_directions(fan);
       fan_boxes[g] = fan.hierarchy.nodes.front().box;
     }
 
@@ -231,12 +248,14 @@ public:
     for(std::size_t g = 0; g < m_fans.size(); ++g) centres[loose.size() + g] = fan_boxes[g].center();
     const std::vector<std::int32_t> order = m_hierarchy.order(centres);
     m_items.resize(order.size());
+    m_corners.reserve(loose.size());
     m_triangles.reserve(loose.size());
     for(std::size_t k = 0; k < order.size(); ++k) {
       const std::size_t item = std::size_t(order[k]);
       if(item < loose.size()) {
         m_items[k] = std::int32_t(m_triangles.size());
         const Corners& c = loose[item];
+        m_corners.push_back(c);
         m_triangles.push_back({point(c[0]), point(c[1]), point(c[2])});
       } else {
         m_items[k] = -1 - std::int32_t(item - loose.size());
@@ -245,6 +264,31 @@ public:
     m_hierarchy.build([&](std::size_t k) {
       const std::int32_t i = m_items[k];
       return i >= 0 ? box_of(m_triangles[std::size_t(i)]) : fan_boxes[std::size_t(-1 - i)];
+    });
+  }
+
+  /// The same faces at positions P (of as many vertices as the mesh built on); the fans' faces
+  /// in parallel when `parallel`.
+  void refit(const Positions& P, bool parallel = false)
+  {
+    const auto point = [&](Index v) -> Point3 { return P.row(v).transpose(); };
+    const auto place = [&](const Corners& c, std::array<Point3, 3>& t) {
+      for(int k = 0; k < 3; ++k) t[std::size_t(k)] = point(c[std::size_t(k)]);
+    };
+    for_each_index(m_triangles.size(), parallel, [&](std::size_t i) { place(m_corners[i], m_triangles[i]); });
+    for_each_index(m_fans.size(), parallel, [&](std::size_t g) {
+      Fan& fan = m_fans[g];
+      fan.apex = point(fan.corners.front()[0]);
+      for(std::size_t k = 0; k < fan.corners.size(); ++k) {
+        place(fan.corners[k], fan.triangles[k]);
+        fan.directions[k] = direction_box(fan.triangles[k]);
+      }
+      fan.hierarchy.refit([&](std::size_t k) { return box_of(fan.triangles[k]); });
+      fit_node_directions(fan);
+    }, std::size_t(1));
+    m_hierarchy.refit([&](std::size_t k) {
+      const std::int32_t i = m_items[k];
+      return i >= 0 ? box_of(m_triangles[std::size_t(i)]) : m_fans[std::size_t(-1 - i)].hierarchy.nodes.front().box;
     });
   }
 
@@ -272,11 +316,29 @@ private:
   struct Fan
   {
     Point3 apex;
+    std::vector<Corners> corners;                   // of each face, apex first
     std::vector<std::array<Point3, 3>> triangles;  // apex first
     std::vector<Box3> directions;                   // of each face: its unit directions from the apex
     Box_hierarchy hierarchy;                        // over the faces, kept in its order
     std::vector<Box3> node_directions;              // of each node of the hierarchy
   };
+
+  // Each fan node also bounds the directions of its faces.
+  static void fit_node_directions(Fan& fan)
+  {
+    fan.node_directions.resize(fan.hierarchy.nodes.size());
+    for(std::size_t n = fan.hierarchy.nodes.size(); n-- > 0;) {
+      const auto& node = fan.hierarchy.nodes[n];
+      Box3 d;
+      if(node.right < 0) {
+        for(std::int32_t k = node.begin; k < node.end; ++k) d.extend(fan.directions[std::size_t(k)]);
+      } else {
+        d = fan.node_directions[n + 1];
+        d.extend(fan.node_directions[std::size_t(node.right)]);
+      }
+      fan.node_directions[n] = d;
+    }
+  }
 
   static Box3 box_of(const std::array<Point3, 3>& t)
   {
@@ -373,18 +435,13 @@ private:
     search(h, p, best, enough, visit, [](std::size_t) { return 0.0; });
   }
 
-  std::vector<std::array<Point3, 3>> m_triangles;  // the faces in no fan
+  std::vector<Corners> m_corners;                   // the faces in no fan
+  std::vector<std::array<Point3, 3>> m_triangles;  // their corners' positions
   std::vector<std::int32_t> m_items;  // in the hierarchy's order: >= 0 a face of m_triangles, < 0 fan -1 - item
   std::vector<Fan> m_fans;
   Box_hierarchy m_hierarchy;
 };
 
-/// Calls visit(point) for the grid samples of the faces of (t, P) at `spacing`: every vertex in a
-/// face, the points that split each edge into ceil(length / spacing) equal parts, and the inner
-/// points of each face's barycentric grid, of ceil(longest of two sides / spacing) steps from
-/// its third corner. This is the sampling of CGAL's `sample_triangle_mesh()` with grid sampling on
-/// a `Surface_mesh` built face by face (whose faces begin at their third corner), so that the two
-/// can be compared.
 // The grid's steps: equal parts of the edge ab, and the steps of the face grid from p0 (its third
 // corner) along its two sides.
 inline double edge_parts(const Point3& a, const Point3& b, double spacing) { return std::ceil((b - a).norm() / spacing); }
@@ -393,105 +450,183 @@ inline double face_grid_steps(const Point3& p0, const Point3& p1, const Point3& 
   return std::max(edge_parts(p0, p1, spacing), edge_parts(p0, p2, spacing));
 }
 
+/// The fewest samples a mesh may always take, and how many per corner beyond them.
+constexpr double grid_sample_floor = double(1 << 20);
+constexpr double grid_samples_per_corner = 16;
+
+/// The grid samples of the faces of a mesh at a spacing: every vertex in a face, the points that
+/// split each edge into ceil(length / spacing) equal parts, and the inner points of each face's
+/// barycentric grid, of ceil(longest of two sides / spacing) steps from its third corner. This is
+/// the sampling of CGAL's `sample_triangle_mesh()` with grid sampling on a `Surface_mesh` built
+/// face by face (whose faces begin at their third corner), so that the two can be compared.
+///
+/// The samples are made face by face, where they are visited, each vertex and edge with the first
+/// face that holds it, and the faces in the Morton order of their centres at the positions given
+/// to the constructor: samples that follow one another lie close together, so that their searches
+/// share a path through a hierarchy and find it in cache, with no sample stored or sorted, and
+/// threads take runs of faces. The connectivity is fixed; the positions sampled may change.
+class Grid_samples
+{
+public:
+  Grid_samples() = default;
+  Grid_samples(const Mesh_topology& t, const Positions& P)
+  {
+    const std::size_t num_faces = std::size_t(t.num_faces);
+    std::vector<Point3> centres(num_faces);
+    for(std::size_t f = 0; f < num_faces; ++f) {
+      Box3 b;
+      for(int k = 0; k < 3; ++k) b.extend(Point3(P.row(t.triangles[3 * f + std::size_t(k)]).transpose()));
+      centres[f] = b.center();
+    }
+    const auto keys = sorted_morton_keys(centres);
+    m_faces.resize(num_faces);
+    m_owned.resize(num_faces);
+    std::vector<char> vertex_taken(std::size_t(t.num_vertices), 0), edge_taken(t.inner.size(), 0);
+    for(std::size_t k = 0; k < num_faces; ++k) {
+      const Index* c = &t.triangles[3 * std::size_t(keys[k].second)];
+      m_faces[k] = {c[0], c[1], c[2]};
+      unsigned char owned = 0;
+      for(int m = 0; m < 3; ++m) {
+        char& taken = vertex_taken[std::size_t(c[m])];
+        if(!taken) taken = 1, owned |= vertex_bit(m);
+        const Index i = std::min(c[m], c[(m + 1) % 3]), j = std::max(c[m], c[(m + 1) % 3]);
+        if(i == j) continue;  // a face without area: its repeated corner is no edge
+        const Index* row = t.inner.data() + t.outer[i];
+        const Index* end = t.inner.data() + t.outer[i + 1];
+        char& edge = edge_taken[std::size_t(std::lower_bound(row, end, j) - t.inner.data())];
+        if(!edge) edge = 1, owned |= edge_bit(m);
+      }
+      m_owned[k] = owned;
+    }
+  }
+
+  std::size_t num_faces() const { return m_faces.size(); }
+
+  /// Calls visit(point) for the samples of the faces at positions [begin, end) of the order.
+  template <typename Visit>
+  void visit(const Positions& P, double spacing, std::size_t begin, std::size_t end, const Visit& visit) const
+  {
+    const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
+    for(std::size_t k = begin; k < end; ++k) {
+      const std::array<Index, 3>& c = m_faces[k];
+      const unsigned owned = m_owned[k];
+      for(int m = 0; m < 3; ++m)
+        if(owned & vertex_bit(m)) visit(point(c[std::size_t(m)]));
+      for(int m = 0; m < 3; ++m) {
+        if(!(owned & edge_bit(m))) continue;
+        // From the lower vertex, as CGAL steps along an edge of a mesh built in this vertex order.
+        const Index i = std::min(c[std::size_t(m)], c[std::size_t(m + 1) % 3]);
+        const Index j = std::max(c[std::size_t(m)], c[std::size_t(m + 1) % 3]);
+        const Point3 a = point(i);
+        const double parts = edge_parts(a, point(j), spacing);
+        if(!(parts > 1)) continue;
+        const Point3 step = (point(j) - a) * (1 / parts);
+        for(double s = 1; s < parts; ++s) visit(Point3(a + s * step));
+      }
+      const Point3 p0 = point(c[2]), p1 = point(c[0]), p2 = point(c[1]);
+      const double n = face_grid_steps(p0, p1, p2, spacing);
+      for(double i = 1; i < n; ++i)
+        for(double j = 1; j < n - i; ++j) {
+          const double c0 = 1 - (i + j) / n, c1 = i / n, c2 = j / n;
+          visit(Point3(c0 * p0 + c1 * p1 + c2 * p2));
+        }
+    }
+  }
+
+  /// How many points visit() would visit over all faces, without visiting them.
+  double count(const Positions& P, double spacing, bool parallel = false) const
+  {
+    const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
+    std::vector<double> counts(part_count(m_faces.size(), faces_per_part), 0.0);
+    for_each_part(m_faces.size(), faces_per_part, parallel, [&](std::size_t part, std::size_t begin, std::size_t end) {
+      double count = 0;  // whole numbers: the sum does not depend on how the faces are split
+      for(std::size_t k = begin; k < end; ++k) {
+        const std::array<Index, 3>& c = m_faces[k];
+        const unsigned owned = m_owned[k];
+        for(int m = 0; m < 3; ++m) {
+          if(owned & vertex_bit(m)) count += 1;
+          if(owned & edge_bit(m))
+            count += std::max(0.0, edge_parts(point(c[std::size_t(m)]), point(c[std::size_t(m + 1) % 3]), spacing) - 1);
+        }
+        const double n = face_grid_steps(point(c[2]), point(c[0]), point(c[1]), spacing);
+        if(n > 2) count += (n - 1) * (n - 2) / 2;
+      }
+      counts[part] = count;
+    });
+    double total = 0;
+    for(double c : counts) total += c;
+    return total;
+  }
+
+  /// `spacing`, or a coarser one if the grid would hold more than grid_sample_floor or
+  /// grid_samples_per_corner samples per corner: the work of a sampled distance stays bounded on a
+  /// mesh of a few faces far larger than the rest, or for a spacing asked far below the edges.
+  double bounded_spacing(const Positions& P, double spacing, bool parallel = false) const
+  {
+    const double limit = std::max(grid_sample_floor, grid_samples_per_corner * 3.0 * double(m_faces.size()));
+    for(int attempt = 0; attempt < 64; ++attempt) {
+      const double count = this->count(P, spacing, parallel);
+      if(count <= limit) return spacing;
+      // The face grids grow as the square of 1 / spacing: the square root of the excess and a
+      // little more brings them under the limit in a step or two.
+      spacing *= 1.05 * std::sqrt(count / limit);
+    }
+    return spacing;
+  }
+
+  /// The largest distance from a sample at positions P to `surface`; runs of faces are sampled
+  /// and searched by several threads when `parallel` (and TBB is available), with the same result.
+  double largest_distance(const Positions& P, double spacing, const Surface_distance& surface,
+                          bool parallel = false) const
+  {
+    // Each run of faces starts from the largest distance found so far. The maximum does not
+    // depend on which runs saw which: a sample is only cut short at or below a distance found.
+    std::atomic<double> largest_sq{0.0};
+    for_each_part(m_faces.size(), faces_per_part, parallel, [&](std::size_t, std::size_t begin, std::size_t end) {
+      double largest_here = largest_sq.load(std::memory_order_relaxed);
+      visit(P, spacing, begin, end, [&](const Point3& p) {
+        largest_here = std::max(largest_here, surface.squared_distance(p, largest_here));
+      });
+      double seen = largest_sq.load(std::memory_order_relaxed);
+      while(largest_here > seen && !largest_sq.compare_exchange_weak(seen, largest_here, std::memory_order_relaxed)) {}
+    });
+    return std::sqrt(largest_sq.load());
+  }
+
+private:
+  static constexpr std::size_t faces_per_part = 256;
+  static constexpr unsigned vertex_bit(int m) { return 1u << m; }      // the corner c[m] is this face's
+  static constexpr unsigned edge_bit(int m) { return 8u << m; }        // the edge c[m] c[m + 1] is this face's
+
+  std::vector<std::array<Index, 3>> m_faces;  // in the order of their samples
+  std::vector<unsigned char> m_owned;         // of each face: vertex_bit()s and edge_bit()s
+};
+
+/// Calls visit(point) for the grid samples (Grid_samples) of the faces of (t, P) at `spacing`.
 template <typename Visit>
 void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spacing, const Visit& visit)
 {
-  const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
-  for(Index v = 0; v < t.num_vertices; ++v)
-    if(t.corner_begin[v + 1] > t.corner_begin[v]) visit(point(v));
-  for(Index i = 0; i < t.num_vertices; ++i)
-    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k) {
-      const Index j = t.inner[k];
-      if(j <= i) continue;
-      const Point3 a = point(i);
-      const double parts = edge_parts(a, point(j), spacing);
-      if(!(parts > 1)) continue;
-      const Point3 step = (point(j) - a) * (1 / parts);
-      for(double s = 1; s < parts; ++s) visit(Point3(a + s * step));
-    }
-  for(Index f = 0; f < t.num_faces; ++f) {
-    const Index* c = &t.triangles[3 * std::size_t(f)];
-    const Point3 p0 = point(c[2]), p1 = point(c[0]), p2 = point(c[1]);
-    const double n = face_grid_steps(p0, p1, p2, spacing);
-    for(double i = 1; i < n; ++i)
-      for(double j = 1; j < n - i; ++j) {
-        const double c0 = 1 - (i + j) / n, c1 = i / n, c2 = j / n;
-        visit(Point3(c0 * p0 + c1 * p1 + c2 * p2));
-      }
-  }
+  const Grid_samples samples(t, P);
+  samples.visit(P, spacing, 0, samples.num_faces(), visit);
 }
 
 /// How many points for_each_grid_sample() visits, without visiting them.
 inline double grid_sample_count(const Mesh_topology& t, const Positions& P, double spacing)
 {
-  const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
-  double count = 0;
-  for(Index v = 0; v < t.num_vertices; ++v) count += t.corner_begin[v + 1] > t.corner_begin[v] ? 1 : 0;
-  for(Index i = 0; i < t.num_vertices; ++i)
-    for(Index k = t.outer[i]; k < t.outer[i + 1]; ++k)
-      if(t.inner[k] > i) count += std::max(0.0, edge_parts(point(i), point(t.inner[k]), spacing) - 1);
-  for(Index f = 0; f < t.num_faces; ++f) {
-    const Index* c = &t.triangles[3 * std::size_t(f)];
-    const double n = face_grid_steps(point(c[2]), point(c[0]), point(c[1]), spacing);
-    if(n > 2) count += (n - 1) * (n - 2) / 2;
-  }
-  return count;
+  return Grid_samples(t, P).count(P, spacing);
 }
 
-/// The fewest samples a mesh may always take, and how many per corner beyond them.
-constexpr double grid_sample_floor = double(1 << 20);
-constexpr double grid_samples_per_corner = 16;
-
-/// `spacing`, or a coarser one if the grid would hold more than grid_sample_floor or
-/// grid_samples_per_corner samples per corner: the work of a sampled distance stays bounded on a
-/// mesh of a few faces far larger than the rest, or for a spacing asked far below the edges.
+/// Grid_samples::bounded_spacing() of (t, P).
 inline double bounded_grid_spacing(const Mesh_topology& t, const Positions& P, double spacing)
 {
-  const double limit = std::max(grid_sample_floor, grid_samples_per_corner * 3.0 * double(t.num_faces));
-  for(int attempt = 0; attempt < 64; ++attempt) {
-    const double count = grid_sample_count(t, P, spacing);
-    if(count <= limit) return spacing;
-    // The face grids grow as the square of 1 / spacing: the square root of the excess and a
-    // little more brings them under the limit in a step or two.
-    spacing *= 1.05 * std::sqrt(count / limit);
-  }
-  return spacing;
+  return Grid_samples(t, P).bounded_spacing(P, spacing);
 }
 
-/// The largest distance from a grid sample of (t, P) to the surface, at `spacing`; the samples
-/// are searched by several threads when `parallel` (and TBB is available), with the same result.
+/// The largest distance from a grid sample of (t, P) to the surface, at `spacing`.
 inline double sampled_one_sided_distance(const Mesh_topology& t, const Positions& P, double spacing,
                                          const Surface_distance& surface, bool parallel = false)
 {
-  // Queries that follow one another in space share their path through the hierarchies and find
-  // it in cache: the samples are taken in chunks, each ordered along a Morton curve. The faces of
-  // a mesh whose vertices are numbered at random would otherwise send every query elsewhere.
-  constexpr std::size_t chunk_size = std::size_t(1) << 20;
-  Box3 box;
-  for(Index v = 0; v < t.num_vertices; ++v) box.extend(Point3(P.row(v).transpose()));
-  std::vector<std::pair<std::uint64_t, Point3>> chunk;
-  chunk.reserve(chunk_size);
-  // Each part of a chunk starts from the largest distance found so far. The maximum does not
-  // depend on which parts saw which: a sample is only cut short at or below a distance found.
-  constexpr std::size_t part_size = 1024;
-  std::atomic<double> largest_sq{0.0};
-  const auto query_chunk = [&] {
-    std::sort(chunk.begin(), chunk.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for_each_part(chunk.size(), part_size, parallel, [&](std::size_t, std::size_t begin, std::size_t end) {
-      double largest_here = largest_sq.load(std::memory_order_relaxed);
-      for(std::size_t k = begin; k < end; ++k)
-        largest_here = std::max(largest_here, surface.squared_distance(chunk[k].second, largest_here));
-      double seen = largest_sq.load(std::memory_order_relaxed);
-      while(largest_here > seen && !largest_sq.compare_exchange_weak(seen, largest_here, std::memory_order_relaxed)) {}
-    });
-    chunk.clear();
-  };
-  for_each_grid_sample(t, P, spacing, [&](const Point3& p) {
-    chunk.emplace_back(morton_code(p, box), p);
-    if(chunk.size() == chunk_size) query_chunk();
-  });
-  query_chunk();
-  return std::sqrt(largest_sq.load());
+  return Grid_samples(t, P).largest_distance(P, spacing, surface, parallel);
 }
 
 } // namespace internal
