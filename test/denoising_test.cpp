@@ -301,7 +301,16 @@ TEST(SurfaceDistance, RefittedToMovedVerticesFindsWhatANewBuildFinds)
       const double exact = brute_force_squared_distance(moved, p);
       EXPECT_EQ(refitted.squared_distance(p), built.squared_distance(p)) << m << " " << q;
       EXPECT_NEAR(std::sqrt(refitted.squared_distance(p)), std::sqrt(exact), 1e-12) << m << " " << q;
+      // One face, by its index in the triangles: that face's distance, in fans and out of them.
+      const std::size_t f = std::size_t(rng()) % refitted.face_count();
+      Triangles one;
+      one.P = moved.P;
+      one.triangles.assign(moved.triangles.begin() + std::ptrdiff_t(3 * f), moved.triangles.begin() + std::ptrdiff_t(3 * f + 3));
+      EXPECT_NEAR(std::sqrt(refitted.squared_distance_to_face(f, p)), std::sqrt(brute_force_squared_distance(one, p)), 1e-12)
+        << m << " " << q;
+      EXPECT_GE(refitted.squared_distance_to_face(f, p), refitted.squared_distance(p)) << m << " " << q;
     }
+    EXPECT_EQ(refitted.face_count(), moved.triangles.size() / 3);
   }
 }
 

@@ -198,8 +198,11 @@ public:
 
     // Faces in no fan, and each fan's faces with its apex first.
     std::vector<Corners> loose;
+    std::vector<std::int32_t> loose_face;  // the face of each
     loose.reserve(num_faces);
+    loose_face.reserve(num_faces);
     std::vector<std::vector<Corners>> fan_faces_of;
+    std::vector<std::vector<std::int32_t>> fan_face_ids;
     std::vector<std::int32_t> fan_of_vertex(std::size_t(P.rows()), -1);
     for(std::size_t f = 0; f < num_faces; ++f) {
       const Index* c = &triangles[3 * f];
@@ -209,15 +212,19 @@ public:
       const Corners corners{c[apex], c[(apex + 1) % 3], c[(apex + 2) % 3]};
       if(faces_of[std::size_t(c[apex])] < fan_faces) {
         loose.push_back(corners);
+        loose_face.push_back(std::int32_t(f));
         continue;
       }
       std::int32_t& fan = fan_of_vertex[std::size_t(c[apex])];
       if(fan < 0) {
         fan = std::int32_t(fan_faces_of.size());
         fan_faces_of.emplace_back();
+        fan_face_ids.emplace_back();
       }
       fan_faces_of[std::size_t(fan)].push_back(corners);
+      fan_face_ids[std::size_t(fan)].push_back(std::int32_t(f));
     }
+    m_face_places.resize(num_faces);
 
     m_fans.resize(fan_faces_of.size());
     std::vector<Box3> fan_boxes(m_fans.size());
@@ -233,6 +240,7 @@ public:
       fan.directions.resize(faces.size());
       for(std::size_t k = 0; k < order.size(); ++k) {
         const Corners& c = faces[std::size_t(order[k])];
+        m_face_places[std::size_t(fan_face_ids[g][std::size_t(order[k])])] = {std::int32_t(g), std::int32_t(k)};
         fan.corners[k] = c;
         fan.triangles[k] = {point(c[0]), point(c[1]), point(c[2])};
         fan.directions[k] = direction_box(fan.triangles[k]);
@@ -254,6 +262,7 @@ public:
       const std::size_t item = std::size_t(order[k]);
       if(item < loose.size()) {
         m_items[k] = std::int32_t(m_triangles.size());
+        m_face_places[std::size_t(loose_face[item])] = {-1, std::int32_t(m_triangles.size())};
         const Corners& c = loose[item];
         m_corners.push_back(c);
         m_triangles.push_back({point(c[0]), point(c[1]), point(c[2])});
@@ -310,6 +319,17 @@ public:
     return best;
   }
 
+  /// The squared distance from p to face f of the triangles the search was built on, computed as
+  /// the search computes it: at most squared_distance(p), and a bound for it as cheap as one face.
+  double squared_distance_to_face(std::size_t f, const Point3& p) const
+  {
+    const Face_place place = m_face_places[f];
+    const auto& t = place.fan < 0 ? m_triangles[std::size_t(place.index)]
+                                  : m_fans[std::size_t(place.fan)].triangles[std::size_t(place.index)];
+    return squared_distance_to_triangle(p, t[0], t[1], t[2]);
+  }
+
+  std::size_t face_count() const { return m_face_places.size(); }
   std::size_t fan_count() const { return m_fans.size(); }
 
 private:
@@ -435,6 +455,11 @@ private:
     search(h, p, best, enough, visit, [](std::size_t) { return 0.0; });
   }
 
+  struct Face_place
+  {
+    std::int32_t fan, index;  // fan -1: m_triangles[index]; otherwise m_fans[fan].triangles[index]
+  };
+  std::vector<Face_place> m_face_places;            // of each face, by its index in the triangles
   std::vector<Corners> m_corners;                   // the faces in no fan
   std::vector<std::array<Point3, 3>> m_triangles;  // their corners' positions
   std::vector<std::int32_t> m_items;  // in the hierarchy's order: >= 0 a face of m_triangles, < 0 fan -1 - item
@@ -480,11 +505,13 @@ public:
     }
     const auto keys = sorted_morton_keys(centres);
     m_faces.resize(num_faces);
+    m_face_indices.resize(num_faces);
     m_owned.resize(num_faces);
     std::vector<char> vertex_taken(std::size_t(t.num_vertices), 0), edge_taken(t.inner.size(), 0);
     for(std::size_t k = 0; k < num_faces; ++k) {
       const Index* c = &t.triangles[3 * std::size_t(keys[k].second)];
       m_faces[k] = {c[0], c[1], c[2]};
+      m_face_indices[k] = Index(keys[k].second);
       unsigned char owned = 0;
       for(int m = 0; m < 3; ++m) {
         char& taken = vertex_taken[std::size_t(c[m])];
@@ -502,16 +529,18 @@ public:
 
   std::size_t num_faces() const { return m_faces.size(); }
 
-  /// Calls visit(point) for the samples of the faces at positions [begin, end) of the order.
+  /// Calls visit(point, face) for the samples of the faces at positions [begin, end) of the
+  /// order, with the index of the face that holds each.
   template <typename Visit>
   void visit(const Positions& P, double spacing, std::size_t begin, std::size_t end, const Visit& visit) const
   {
     const auto point = [&](Index i) -> Point3 { return P.row(i).transpose(); };
     for(std::size_t k = begin; k < end; ++k) {
       const std::array<Index, 3>& c = m_faces[k];
+      const std::size_t face = std::size_t(m_face_indices[k]);
       const unsigned owned = m_owned[k];
       for(int m = 0; m < 3; ++m)
-        if(owned & vertex_bit(m)) visit(point(c[std::size_t(m)]));
+        if(owned & vertex_bit(m)) visit(point(c[std::size_t(m)]), face);
       for(int m = 0; m < 3; ++m) {
         if(!(owned & edge_bit(m))) continue;
         // From the lower vertex, as CGAL steps along an edge of a mesh built in this vertex order.
@@ -521,14 +550,14 @@ public:
         const double parts = edge_parts(a, point(j), spacing);
         if(!(parts > 1)) continue;
         const Point3 step = (point(j) - a) * (1 / parts);
-        for(double s = 1; s < parts; ++s) visit(Point3(a + s * step));
+        for(double s = 1; s < parts; ++s) visit(Point3(a + s * step), face);
       }
       const Point3 p0 = point(c[2]), p1 = point(c[0]), p2 = point(c[1]);
       const double n = face_grid_steps(p0, p1, p2, spacing);
       for(double i = 1; i < n; ++i)
         for(double j = 1; j < n - i; ++j) {
           const double c0 = 1 - (i + j) / n, c1 = i / n, c2 = j / n;
-          visit(Point3(c0 * p0 + c1 * p1 + c2 * p2));
+          visit(Point3(c0 * p0 + c1 * p1 + c2 * p2), face);
         }
     }
   }
@@ -581,10 +610,15 @@ public:
   {
     // Each run of faces starts from the largest distance found so far. The maximum does not
     // depend on which runs saw which: a sample is only cut short at or below a distance found.
+    // The surface's face of the same index (the same face, on a mesh of the same connectivity,
+    // and near the sample when the two meshes are close) is tried first: at most the largest
+    // distance so far from it, the sample cannot raise the maximum and needs no search.
+    const std::size_t surface_faces = surface.face_count();
     std::atomic<double> largest_sq{0.0};
     for_each_part(m_faces.size(), faces_per_part, parallel, [&](std::size_t, std::size_t begin, std::size_t end) {
       double largest_here = largest_sq.load(std::memory_order_relaxed);
-      visit(P, spacing, begin, end, [&](const Point3& p) {
+      visit(P, spacing, begin, end, [&](const Point3& p, std::size_t face) {
+        if(face < surface_faces && surface.squared_distance_to_face(face, p) <= largest_here) return;
         largest_here = std::max(largest_here, surface.squared_distance(p, largest_here));
       });
       double seen = largest_sq.load(std::memory_order_relaxed);
@@ -599,6 +633,7 @@ private:
   static constexpr unsigned edge_bit(int m) { return 8u << m; }        // the edge c[m] c[m + 1] is this face's
 
   std::vector<std::array<Index, 3>> m_faces;  // in the order of their samples
+  std::vector<Index> m_face_indices;          // of each, in the mesh's triangles
   std::vector<unsigned char> m_owned;         // of each face: vertex_bit()s and edge_bit()s
 };
 
@@ -607,7 +642,7 @@ template <typename Visit>
 void for_each_grid_sample(const Mesh_topology& t, const Positions& P, double spacing, const Visit& visit)
 {
   const Grid_samples samples(t, P);
-  samples.visit(P, spacing, 0, samples.num_faces(), visit);
+  samples.visit(P, spacing, 0, samples.num_faces(), [&](const Point3& p, std::size_t) { visit(p); });
 }
 
 /// How many points for_each_grid_sample() visits, without visiting them.
