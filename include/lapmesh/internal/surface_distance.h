@@ -320,7 +320,7 @@ public:
   }
 
   /// The squared distance from p to face f of the triangles the search was built on, computed as
-  /// the search computes it: at most squared_distance(p), and a bound for it as cheap as one face.
+  /// the search computes it: no less than squared_distance(p), a bound of it for the cost of one face.
   double squared_distance_to_face(std::size_t f, const Point3& p) const
   {
     const Face_place place = m_face_places[f];
