@@ -970,7 +970,7 @@ TEST(DenoisingCli, ProgressLinesWhenStderrIsNotATerminal)
   const std::string in = write_thin_torus("thin_torus.off");
   const std::string out = lapmesh_test::scratch_dir() + "/progress.csv";
   const std::string args = in + " -o " + out + " --levels 0.01 --schemes explicit,implicit --laplacians uniform "
-                           "--lambdas 0.1,0.3 --iterations 20 --progress-interval 0.01";
+                           "--lambdas 0.1,0.3 --iterations 20 --progress-interval 0.001";
   Cli_result r = run_study_cli(args);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(r.err.find('\r'), std::string::npos);  // whole lines, not a redrawn terminal line

@@ -11,6 +11,7 @@
 #include <lapmesh/io.h>
 #include <lapmesh/internal/memory.h>
 #include <lapmesh/internal/spd_solver.h>
+#include <lapmesh/internal/stability_bound.h>
 #include <lapmesh/internal/subnormals.h>
 
 #include <CGAL/Eigen_solver_traits.h>
@@ -405,6 +406,34 @@ TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
     EXPECT_NEAR(bound, 2.0 / mu_max, 1e-7 * bound) << lapmesh::to_string(lap);
     EXPECT_LE(bound, 2.0 / mu_max * (1 + 1e-12));  // on the safe side
   }
+}
+
+TEST(Smoothing, TopEigenpairOfTridiagonalMatchesTheDenseSolver)
+{
+  // Random tridiagonal matrices of the sizes the Lanczos checks see, of small and large scale, and
+  // one with a zero off-diagonal entry (two blocks): the largest eigenvalue and the last component
+  // of its unit eigenvector as a dense eigen-solve gives them.
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for(int m : {1, 2, 8, 64, 200, 400})
+    for(double scale : {1e-6, 1.0, 1e7}) {
+      const std::size_t size = std::size_t(m);
+      std::vector<double> a(size), b(size - 1);
+      for(double& x : a) x = scale * u(rng);
+      for(double& x : b) x = scale * u(rng);
+      if(m > 8) b[std::size_t(m / 2)] = 0;
+      Eigen::MatrixXd T = Eigen::MatrixXd::Zero(m, m);
+      for(int i = 0; i < m; ++i) T(i, i) = a[std::size_t(i)];
+      for(int i = 0; i + 1 < m; ++i) T(i, i + 1) = T(i + 1, i) = b[std::size_t(i)];
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(T);
+      const lapmesh::internal::Tridiagonal_top top = lapmesh::internal::top_eigenpair_of_tridiagonal(a, b);
+      EXPECT_NEAR(top.value, es.eigenvalues()[m - 1], 1e-12 * scale) << m << " " << scale;
+      // The top eigenvalue of random matrices is well apart from the next: its vector is well defined.
+      if(m > 1) {
+        ASSERT_GT(es.eigenvalues()[m - 1] - es.eigenvalues()[m - 2], 1e-3 * scale) << m;
+      }
+      EXPECT_NEAR(std::abs(top.last_component), std::abs(es.eigenvectors()(m - 1, m - 1)), 1e-9) << m << " " << scale;
+    }
 }
 
 TEST(Smoothing, StabilityBoundInParallelIsTheSerialOne)

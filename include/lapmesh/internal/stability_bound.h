@@ -75,6 +75,61 @@ struct Pencil_arrays
   Index nonzeros() const { return outer ? outer[size] : 0; }
 };
 
+/// The largest eigenvalue of a symmetric tridiagonal matrix and the last component of its unit
+/// eigenvector (up to sign).
+struct Tridiagonal_top
+{
+  double value = 0, last_component = 1;
+};
+
+/// Tridiagonal_top of the matrix of diagonal `a` (m = a.size() entries) and off-diagonal the first
+/// m - 1 entries of `b`. The eigenvalue comes from Eigen's QL iteration without vectors; the vector
+/// from inverse iteration with a shift just above it, where the shifted matrix is negative definite
+/// and its LDL^T needs no pivoting: O(m) a solve, where accumulating every eigenvector costs O(m^3).
+inline Tridiagonal_top top_eigenpair_of_tridiagonal(const std::vector<double>& a, const std::vector<double>& b)
+{
+  const int m = int(a.size());
+  assert(m >= 1 && int(b.size()) >= m - 1);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
+  const Eigen::VectorXd diagonal = Eigen::Map<const Eigen::VectorXd>(a.data(), m);
+  const Eigen::VectorXd off_diagonal = Eigen::Map<const Eigen::VectorXd>(b.data(), m - 1);
+  es.computeFromTridiagonal(diagonal, off_diagonal, Eigen::EigenvaluesOnly);
+  Tridiagonal_top top;
+  top.value = es.eigenvalues()[m - 1];
+  if(m == 1) return top;
+  // The eigenvalue is within a few roundings of the matrix's scale of the true one: a shift of
+  // many roundings lies above every eigenvalue and is still far nearer the top one than the next.
+  double scale = 0;
+  for(int i = 0; i < m; ++i)
+    scale = std::max(scale, std::abs(a[std::size_t(i)]) + (i > 0 ? std::abs(b[std::size_t(i) - 1]) : 0.0) +
+                              (i + 1 < m ? std::abs(b[std::size_t(i)]) : 0.0));
+  const double tiny = std::max(scale, std::numeric_limits<double>::min()) * std::numeric_limits<double>::epsilon();
+  const double shift = top.value + 64 * tiny;
+  // LDL^T of the shifted matrix (every pivot negative), then two solves from a vector of ones.
+  const std::size_t size = std::size_t(m);
+  std::vector<double> pivot(size), factor(size), x(size, 1.0);
+  for(int i = 0; i < m; ++i) {
+    double d = a[std::size_t(i)] - shift;
+    if(i > 0) {
+      factor[std::size_t(i)] = b[std::size_t(i) - 1] / pivot[std::size_t(i) - 1];
+      d -= factor[std::size_t(i)] * b[std::size_t(i) - 1];
+    }
+    pivot[std::size_t(i)] = d < 0 ? d : -tiny;  // negative in exact arithmetic
+  }
+  for(int iteration = 0; iteration < 2; ++iteration) {
+    for(int i = 1; i < m; ++i) x[std::size_t(i)] -= factor[std::size_t(i)] * x[std::size_t(i) - 1];
+    for(int i = 0; i < m; ++i) x[std::size_t(i)] /= pivot[std::size_t(i)];
+    for(int i = m - 1; i-- > 0;) x[std::size_t(i)] -= factor[std::size_t(i) + 1] * x[std::size_t(i) + 1];
+    double norm = 0;
+    for(double v : x) norm = std::max(norm, std::abs(v));
+    for(double& v : x) v /= norm;
+  }
+  double norm_sq = 0;
+  for(double v : x) norm_sq += v * v;
+  top.last_component = x[std::size_t(m) - 1] / std::sqrt(norm_sq);
+  return top;
+}
+
 /// Largest eigenvalue of -M_FF^-1 S_FF (the free block of -L), by Lanczos on the symmetric
 /// form M^-1/2 (-S) M^-1/2, which has the same spectrum. Extreme Ritz values converge first;
 /// no reorthogonalisation is needed for the largest one (ghost copies do not move it). The
@@ -124,7 +179,7 @@ inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
     if(k > 0) w -= beta.back() * v_prev;
     alpha.push_back(a);
     const double b = w.norm();
-    // Ritz values of the tridiagonal matrix, every 8 steps (O(m^2) each).
+    // The top Ritz value of the tridiagonal matrix, every 8 steps (O(m^2) each).
     const int m = int(alpha.size());
     if(m % 8 != 0 && m != max_steps && !(b <= 1e-14 * std::abs(a))) {
       beta.push_back(b);
@@ -132,13 +187,9 @@ inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
       v = w / b;
       continue;
     }
-    Eigen::VectorXd diag = Eigen::Map<const Eigen::VectorXd>(alpha.data(), m);
-    Eigen::VectorXd sub(std::max(m - 1, 1));
-    for(int r = 0; r + 1 < m; ++r) sub[r] = beta[r];
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
-    es.computeFromTridiagonal(diag, sub.head(std::max(m - 1, 0)), Eigen::ComputeEigenvectors);
-    const double theta = es.eigenvalues()[m - 1];
-    const double residual = std::abs(b * es.eigenvectors()(m - 1, m - 1));
+    const Tridiagonal_top top = top_eigenpair_of_tridiagonal(alpha, beta);
+    const double theta = top.value;
+    const double residual = std::abs(b * top.last_component);
     estimate = theta + residual;
     if(residual <= rel_tol * theta || b <= 1e-14 * std::abs(theta)) break;
     beta.push_back(b);
