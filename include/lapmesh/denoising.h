@@ -111,8 +111,13 @@ public:
     // mesh (explicit steps above the stability bound) is not sampled with millions of points.
     const double spacing = std::max(m_spacing, m_spacing_factor * mean_edge_length(*m_t, P));
     m_surface.refit(P, m_parallel);
+    // The reference does not move: its grid is bounded again only for another spacing.
+    if(spacing != m_reference_spacing_asked) {
+      m_reference_spacing_asked = spacing;
+      m_reference_spacing = m_samples.bounded_spacing(m_reference, spacing, m_parallel);
+    }
     const double spacing_ab = m_samples.bounded_spacing(P, spacing, m_parallel);
-    const double spacing_ba = m_samples.bounded_spacing(m_reference, spacing, m_parallel);
+    const double spacing_ba = m_reference_spacing;
     const double ab = m_samples.largest_distance(P, spacing_ab, m_reference_surface, m_parallel);
     const double ba = m_samples.largest_distance(m_reference, spacing_ba, m_surface, m_parallel);
     d.hausdorff_distance = std::max(ab, ba) / m_diagonal;
@@ -135,6 +140,7 @@ private:
   const Mesh_topology* m_t;
   Positions m_reference, m_reference_normals;
   double m_diagonal = 0, m_volume = 0, m_spacing = 0, m_spacing_factor = 1;
+  double m_reference_spacing_asked = std::numeric_limits<double>::quiet_NaN(), m_reference_spacing = 0;
   bool m_closed = false, m_parallel = false;
   Surface_distance m_reference_surface;  // the reference does not move: its search is built once
   Surface_distance m_surface;            // the measured mesh's: the reference's, refitted each time

@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 namespace lapmesh {
@@ -172,6 +173,14 @@ private:
   std::vector<std::uint64_t> m_codes;  // of the items in order, between order() and build()
 };
 
+/// The box of a triangle's corners.
+inline Box3 triangle_box(const std::array<Point3, 3>& t)
+{
+  Box3 b;
+  for(const Point3& p : t) b.extend(p);
+  return b;
+}
+
 /// Squared distances from points to the faces of a triangle mesh (any: with borders, non-manifold,
 /// with faces without area). Faces around a vertex of at least `fan_faces` faces go into that
 /// vertex's fan (the vertex of most faces among the three), searched by direction. A mesh whose
@@ -189,116 +198,88 @@ public:
     const std::size_t num_faces = triangles.size() / 3;
     std::vector<Index> faces_of(std::size_t(P.rows()), 0);
     for(Index v : triangles) ++faces_of[std::size_t(v)];
-    const auto point = [&](Index v) -> Point3 { return P.row(v).transpose(); };
-    const auto centre = [&](const Corners& c) {
-      Box3 b;
-      for(Index v : c) b.extend(point(v));
-      return b.center();
-    };
-
-    // Faces in no fan, and each fan's faces with its apex first.
-    std::vector<Corners> loose;
-    std::vector<std::int32_t> loose_face;  // the face of each
-    loose.reserve(num_faces);
-    loose_face.reserve(num_faces);
-    std::vector<std::vector<Corners>> fan_faces_of;
-    std::vector<std::vector<std::int32_t>> fan_face_ids;
-    std::vector<std::int32_t> fan_of_vertex(std::size_t(P.rows()), -1);
-    for(std::size_t f = 0; f < num_faces; ++f) {
+    // A face's corners from its apex, the corner of most faces.
+    const auto apex_first = [&](std::size_t f) -> Corners {
       const Index* c = &triangles[3 * f];
       int apex = 0;
       for(int k = 1; k < 3; ++k)
         if(faces_of[std::size_t(c[k])] > faces_of[std::size_t(c[apex])]) apex = k;
-      const Corners corners{c[apex], c[(apex + 1) % 3], c[(apex + 2) % 3]};
-      if(faces_of[std::size_t(c[apex])] < fan_faces) {
-        loose.push_back(corners);
-        loose_face.push_back(std::int32_t(f));
+      return {c[apex], c[(apex + 1) % 3], c[(apex + 2) % 3]};
+    };
+    const auto centre = [&](std::size_t f) { return triangle_box(triangle_at(P, apex_first(f))).center(); };
+
+    // The faces in no fan, and each fan's faces.
+    std::vector<std::int32_t> loose;
+    loose.reserve(num_faces);
+    std::vector<std::vector<std::int32_t>> fan_faces_of;
+    std::vector<std::int32_t> fan_of_vertex(std::size_t(P.rows()), -1);
+    for(std::size_t f = 0; f < num_faces; ++f) {
+      const Index apex = apex_first(f)[0];
+      if(faces_of[std::size_t(apex)] < fan_faces) {
+        loose.push_back(std::int32_t(f));
         continue;
       }
-      std::int32_t& fan = fan_of_vertex[std::size_t(c[apex])];
+      std::int32_t& fan = fan_of_vertex[std::size_t(apex)];
       if(fan < 0) {
         fan = std::int32_t(fan_faces_of.size());
         fan_faces_of.emplace_back();
-        fan_face_ids.emplace_back();
       }
-      fan_faces_of[std::size_t(fan)].push_back(corners);
-      fan_face_ids[std::size_t(fan)].push_back(std::int32_t(f));
+      fan_faces_of[std::size_t(fan)].push_back(std::int32_t(f));
     }
     m_face_places.resize(num_faces);
 
     m_fans.resize(fan_faces_of.size());
-    std::vector<Box3> fan_boxes(m_fans.size());
     for(std::size_t g = 0; g < m_fans.size(); ++g) {
       Fan& fan = m_fans[g];
-      const std::vector<Corners>& faces = fan_faces_of[g];
-      fan.apex = point(faces.front()[0]);
+      const std::vector<std::int32_t>& faces = fan_faces_of[g];
       std::vector<Point3> centres(faces.size());
-      for(std::size_t i = 0; i < faces.size(); ++i) centres[i] = centre(faces[i]);
+      for(std::size_t i = 0; i < faces.size(); ++i) centres[i] = centre(std::size_t(faces[i]));
       const std::vector<std::int32_t> order = fan.hierarchy.order(centres);
       fan.corners.resize(faces.size());
-      fan.triangles.resize(faces.size());
-      fan.directions.resize(faces.size());
       for(std::size_t k = 0; k < order.size(); ++k) {
-        const Corners& c = faces[std::size_t(order[k])];
-        m_face_places[std::size_t(fan_face_ids[g][std::size_t(order[k])])] = {std::int32_t(g), std::int32_t(k)};
-        fan.corners[k] = c;
-        fan.triangles[k] = {point(c[0]), point(c[1]), point(c[2])};
-        fan.directions[k] = direction_box(fan.triangles[k]);
+        const std::size_t f = std::size_t(faces[std::size_t(order[k])]);
+        m_face_places[f] = {std::int32_t(g), std::int32_t(k)};
+        fan.corners[k] = apex_first(f);
       }
-      fan.hierarchy.build([&](std::size_t k) { return box_of(fan.triangles[k]); });
+      place(fan, P);
+      fan.hierarchy.build([&](std::size_t k) { return triangle_box(fan.triangles[k]); });
       fit_node_directions(fan);
-      fan_boxes[g] = fan.hierarchy.nodes.front().box;
     }
 
     // The loose faces and the fans as items of one hierarchy, in its order.
     std::vector<Point3> centres(loose.size() + m_fans.size());
-    for(std::size_t i = 0; i < loose.size(); ++i) centres[i] = centre(loose[i]);
-    for(std::size_t g = 0; g < m_fans.size(); ++g) centres[loose.size() + g] = fan_boxes[g].center();
+    for(std::size_t i = 0; i < loose.size(); ++i) centres[i] = centre(std::size_t(loose[i]));
+    for(std::size_t g = 0; g < m_fans.size(); ++g) centres[loose.size() + g] = m_fans[g].hierarchy.nodes.front().box.center();
     const std::vector<std::int32_t> order = m_hierarchy.order(centres);
     m_items.resize(order.size());
     m_corners.reserve(loose.size());
-    m_triangles.reserve(loose.size());
     for(std::size_t k = 0; k < order.size(); ++k) {
       const std::size_t item = std::size_t(order[k]);
       if(item < loose.size()) {
-        m_items[k] = std::int32_t(m_triangles.size());
-        m_face_places[std::size_t(loose_face[item])] = {-1, std::int32_t(m_triangles.size())};
-        const Corners& c = loose[item];
-        m_corners.push_back(c);
-        m_triangles.push_back({point(c[0]), point(c[1]), point(c[2])});
+        m_items[k] = std::int32_t(m_corners.size());
+        m_face_places[std::size_t(loose[item])] = {-1, std::int32_t(m_corners.size())};
+        m_corners.push_back(apex_first(std::size_t(loose[item])));
       } else {
         m_items[k] = -1 - std::int32_t(item - loose.size());
       }
     }
-    m_hierarchy.build([&](std::size_t k) {
-      const std::int32_t i = m_items[k];
-      return i >= 0 ? box_of(m_triangles[std::size_t(i)]) : fan_boxes[std::size_t(-1 - i)];
-    });
+    m_triangles.resize(m_corners.size());
+    for(std::size_t i = 0; i < m_corners.size(); ++i) m_triangles[i] = triangle_at(P, m_corners[i]);
+    m_hierarchy.build([&](std::size_t k) { return item_box(k); });
   }
 
   /// The same faces at positions P (of as many vertices as the mesh built on); the fans' faces
   /// in parallel when `parallel`.
   void refit(const Positions& P, bool parallel = false)
   {
-    const auto point = [&](Index v) -> Point3 { return P.row(v).transpose(); };
-    const auto place = [&](const Corners& c, std::array<Point3, 3>& t) {
-      for(int k = 0; k < 3; ++k) t[std::size_t(k)] = point(c[std::size_t(k)]);
-    };
-    for_each_index(m_triangles.size(), parallel, [&](std::size_t i) { place(m_corners[i], m_triangles[i]); });
+    for_each_index(m_triangles.size(), parallel, [&](std::size_t i) { m_triangles[i] = triangle_at(P, m_corners[i]); });
     for_each_index(m_fans.size(), parallel, [&](std::size_t g) {
       Fan& fan = m_fans[g];
-      fan.apex = point(fan.corners.front()[0]);
-      for(std::size_t k = 0; k < fan.corners.size(); ++k) {
-        place(fan.corners[k], fan.triangles[k]);
-        fan.directions[k] = direction_box(fan.triangles[k]);
-      }
-      fan.hierarchy.refit([&](std::size_t k) { return box_of(fan.triangles[k]); });
+      place(fan, P);
+      fan.hierarchy.refit([&](std::size_t k) { return triangle_box(fan.triangles[k]); });
       fit_node_directions(fan);
     }, std::size_t(1));
-    m_hierarchy.refit([&](std::size_t k) {
-      const std::int32_t i = m_items[k];
-      return i >= 0 ? box_of(m_triangles[std::size_t(i)]) : m_fans[std::size_t(-1 - i)].hierarchy.nodes.front().box;
-    });
+    m_hierarchy.refit([&](std::size_t k) { return item_box(k); });
   }
 
   /// The squared distance from p to the nearest face, or any value of at most `enough` once one
@@ -343,6 +324,30 @@ private:
     std::vector<Box3> node_directions;              // of each node of the hierarchy
   };
 
+  static std::array<Point3, 3> triangle_at(const Positions& P, const Corners& c)
+  {
+    return {P.row(c[0]).transpose(), P.row(c[1]).transpose(), P.row(c[2]).transpose()};
+  }
+
+  // The fan's apex, faces and their directions at positions P.
+  static void place(Fan& fan, const Positions& P)
+  {
+    fan.apex = P.row(fan.corners.front()[0]).transpose();
+    fan.triangles.resize(fan.corners.size());
+    fan.directions.resize(fan.corners.size());
+    for(std::size_t k = 0; k < fan.corners.size(); ++k) {
+      fan.triangles[k] = triangle_at(P, fan.corners[k]);
+      fan.directions[k] = direction_box(fan.triangles[k]);
+    }
+  }
+
+  // The box of the item at position k of the hierarchy's order: a loose face, or a fan's root.
+  Box3 item_box(std::size_t k) const
+  {
+    const std::int32_t i = m_items[k];
+    return i >= 0 ? triangle_box(m_triangles[std::size_t(i)]) : m_fans[std::size_t(-1 - i)].hierarchy.nodes.front().box;
+  }
+
   // Each fan node also bounds the directions of its faces.
   static void fit_node_directions(Fan& fan)
   {
@@ -358,13 +363,6 @@ private:
       }
       fan.node_directions[n] = d;
     }
-  }
-
-  static Box3 box_of(const std::array<Point3, 3>& t)
-  {
-    Box3 b;
-    for(const Point3& p : t) b.extend(p);
-    return b;
   }
 
   // A box holding the unit directions from the apex t[0] to the points of the face: the arc of the
@@ -498,11 +496,7 @@ public:
   {
     const std::size_t num_faces = std::size_t(t.num_faces);
     std::vector<Point3> centres(num_faces);
-    for(std::size_t f = 0; f < num_faces; ++f) {
-      Box3 b;
-      for(int k = 0; k < 3; ++k) b.extend(Point3(P.row(t.triangles[3 * f + std::size_t(k)]).transpose()));
-      centres[f] = b.center();
-    }
+    for(std::size_t f = 0; f < num_faces; ++f) centres[f] = triangle_box(face_points(t, P, Index(f))).center();
     const auto keys = sorted_morton_keys(centres);
     m_faces.resize(num_faces);
     m_face_indices.resize(num_faces);
@@ -516,7 +510,7 @@ public:
       for(int m = 0; m < 3; ++m) {
         char& taken = vertex_taken[std::size_t(c[m])];
         if(!taken) taken = 1, owned |= vertex_bit(m);
-        const Index i = std::min(c[m], c[(m + 1) % 3]), j = std::max(c[m], c[(m + 1) % 3]);
+        const auto [i, j] = edge(m_faces[k], m);
         if(i == j) continue;  // a face without area: its repeated corner is no edge
         const Index* row = t.inner.data() + t.outer[i];
         const Index* end = t.inner.data() + t.outer[i + 1];
@@ -543,9 +537,7 @@ public:
         if(owned & vertex_bit(m)) visit(point(c[std::size_t(m)]), face);
       for(int m = 0; m < 3; ++m) {
         if(!(owned & edge_bit(m))) continue;
-        // From the lower vertex, as CGAL steps along an edge of a mesh built in this vertex order.
-        const Index i = std::min(c[std::size_t(m)], c[std::size_t(m + 1) % 3]);
-        const Index j = std::max(c[std::size_t(m)], c[std::size_t(m + 1) % 3]);
+        const auto [i, j] = edge(c, m);
         const Point3 a = point(i);
         const double parts = edge_parts(a, point(j), spacing);
         if(!(parts > 1)) continue;
@@ -574,8 +566,10 @@ public:
         const unsigned owned = m_owned[k];
         for(int m = 0; m < 3; ++m) {
           if(owned & vertex_bit(m)) count += 1;
-          if(owned & edge_bit(m))
-            count += std::max(0.0, edge_parts(point(c[std::size_t(m)]), point(c[std::size_t(m + 1) % 3]), spacing) - 1);
+          if(owned & edge_bit(m)) {
+            const auto [i, j] = edge(c, m);
+            count += std::max(0.0, edge_parts(point(i), point(j), spacing) - 1);
+          }
         }
         const double n = face_grid_steps(point(c[2]), point(c[0]), point(c[1]), spacing);
         if(n > 2) count += (n - 1) * (n - 2) / 2;
@@ -631,6 +625,14 @@ private:
   static constexpr std::size_t faces_per_part = 256;
   static constexpr unsigned vertex_bit(int m) { return 1u << m; }      // the corner c[m] is this face's
   static constexpr unsigned edge_bit(int m) { return 8u << m; }        // the edge c[m] c[m + 1] is this face's
+
+  // The edge c[m] c[m + 1], from its lower vertex: CGAL steps along an edge of a mesh built in this
+  // vertex order from there.
+  static std::pair<Index, Index> edge(const std::array<Index, 3>& c, int m)
+  {
+    const Index a = c[std::size_t(m)], b = c[std::size_t(m + 1) % 3];
+    return {std::min(a, b), std::max(a, b)};
+  }
 
   std::vector<std::array<Index, 3>> m_faces;  // in the order of their samples
   std::vector<Index> m_face_indices;          // of each, in the mesh's triangles
