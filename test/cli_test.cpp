@@ -233,6 +233,29 @@ TEST(CliMessages, ChoiceErrorsListExactlyTheDocumentedNames)
   std::remove(out.c_str());
 }
 
+TEST(CliMessages, AComponentShrunkToAPointIsAWarningAndTheRunGoesOn)
+{
+  // A unit sphere and one of radius 0.01 beside it: at lambda 0.01 the implicit flow shrinks the
+  // small one to nearly a point at step 2, holds it there and smooths the large one on.
+  lapmesh::Triangle_soup soup = lapmesh::icosphere(3, 1.0);
+  const lapmesh::Triangle_soup small = lapmesh::icosphere(2, 0.01);
+  const int offset = int(soup.points.size());
+  for(auto p : small.points) soup.points.push_back({p[0] + 3.0, p[1], p[2]});
+  for(auto t : small.triangles) soup.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  const std::string in = write_mesh_file("two_spheres.off", soup);
+  const std::string out = tmp("two_spheres_smoothed.off");
+  std::filesystem::remove(out);
+  const Cli_result r =
+    run_lapmesh("smooth " + in + " -o " + out + " --scheme implicit --lambda 0.01 --lambda-unit absolute --iterations 6 -q");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+  EXPECT_EQ(r.err, in + ": warning: the flow shrank the connected component of vertex " + std::to_string(offset) + " (" +
+                     std::to_string(small.points.size()) +
+                     " vertices) at iteration 2 to nearly a point; it was held there for the remaining steps while "
+                     "the other components went on (use --fixed-operator)\n");
+  EXPECT_TRUE(std::filesystem::exists(out));
+}
+
 TEST(CliMessages, ACollapseDuringSmoothingNamesTheIteration)
 {
   // The cotangent flow (operator rebuilt every step) pinches the cow's thin parts; the input

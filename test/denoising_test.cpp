@@ -818,6 +818,74 @@ TEST(Denoising, AFlowThatShrinksOneComponentToAPointNamesIt)
   EXPECT_LT(std::stod(error.substr(error.find("its area is ") + 12)), 1e-12) << error;
 }
 
+namespace {
+// Spheres of the given radii, centred on the x axis 3 apart, as one mesh of several components.
+lapmesh::Triangle_soup spheres(const std::vector<double>& radii)
+{
+  lapmesh::Triangle_soup all;
+  for(std::size_t k = 0; k < radii.size(); ++k) {
+    const lapmesh::Triangle_soup one = lapmesh::icosphere(k == 0 ? 3 : 2, radii[k]);
+    const int offset = int(all.points.size());
+    for(auto p : one.points) {
+      p[0] += 3.0 * double(k);
+      all.points.push_back(p);
+    }
+    for(auto t : one.triangles) all.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  }
+  return all;
+}
+} // namespace
+
+// The implicit cotangent flow maps a sphere of radius r << sqrt(lambda) nearly onto its centre in
+// one step and, at the next, below 1e-12 x lambda in area, where its part of M is lost beside
+// lambda S. The flow holds that component where it is and goes on with the others, whose steps
+// are those they take alone (the components do not couple).
+TEST(Denoising, AComponentShrunkToAPointIsHeldWhileTheOthersGoOn)
+{
+  const double lambda = 0.01;
+  const int steps = 6;
+  Mesh both = to_mesh(spheres({1.0, 0.01}));
+  Mesh alone = to_mesh(spheres({1.0}));
+  const std::size_t big = num_vertices(alone), small = num_vertices(both) - big;
+  const auto report = lapmesh::smooth_laplacian_implicit(both, lambda, CGAL::parameters::number_of_iterations(steps));
+  lapmesh::smooth_laplacian_implicit(alone, lambda, CGAL::parameters::number_of_iterations(steps));
+  EXPECT_EQ(report.iterations, steps);
+  ASSERT_EQ(report.collapsed_components.size(), 1u);
+  const lapmesh::Collapsed_component& held = report.collapsed_components[0];
+  EXPECT_EQ(held.iteration, 2);
+  EXPECT_EQ(held.first_vertex, big);
+  EXPECT_EQ(held.vertices, small);
+  EXPECT_LT(held.area_over_lambda, 1e-12);
+  const Eigen::MatrixXd P = positions(both), Q = positions(alone);
+  for(std::size_t i = 0; i < big; ++i)
+    ASSERT_LT((P.row(Eigen::Index(i)) - Q.row(Eigen::Index(i))).norm(), 1e-12) << i;
+  // The small sphere stays where step 2 left it, a sphere of radius about 1e-8 around its
+  // centre (where the flow keeps the mass-weighted centroid); another step would have shrunk
+  // it far more.
+  Mesh two_steps = to_mesh(spheres({1.0, 0.01}));
+  lapmesh::smooth_laplacian_implicit(two_steps, lambda, CGAL::parameters::number_of_iterations(2));
+  const Eigen::MatrixXd R = positions(two_steps);
+  double spread = 0;
+  for(std::size_t i = big; i < big + small; ++i) {
+    const Eigen::Index row = Eigen::Index(i);
+    spread = std::max(spread, (P.row(row) - Eigen::RowVector3d(3, 0, 0)).norm());
+    ASSERT_LT((P.row(row) - R.row(row)).norm(), 1e-14) << i;
+  }
+  EXPECT_GT(spread, 1e-9);
+  EXPECT_LT(spread, 1e-7);
+
+  // When every component in the system shrinks at once, nothing is left to go on: the flow
+  // ends with the error that names one of them, as on a single component.
+  Mesh tiny = to_mesh(spheres({0.01, 0.01}));
+  std::string error;
+  try {
+    lapmesh::smooth_laplacian_implicit(tiny, lambda, CGAL::parameters::number_of_iterations(steps));
+  } catch(const lapmesh::Numerical_error& e) {
+    error = e.what();
+  }
+  EXPECT_EQ(error.rfind("iteration 2: the flow shrank the connected component of vertex ", 0), 0u) << error;
+}
+
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
 // sum of positive semidefinite element matrices. A one-step flow on a mesh full of obtuse
 // triangles factorises at any lambda.

@@ -210,7 +210,10 @@ Smoothing_report smooth_laplacian_explicit(TriangleMesh& tm, double lambda,
 /// The SPD free block is factorised by a sparse Cholesky (CHOLMOD's supernodal LL^T when compiled
 /// in, else Eigen::SimplicialLDLT); the symbolic analysis is done once, and the matrix is
 /// refactorised only when it changes (each iteration for the rebuilt cotangent operator; once
-/// for `uniform` or `fixed_operator`).
+/// for `uniform` or `fixed_operator`). Where the operator follows the positions, a connected
+/// component that the flow shrinks to nearly a point (area below 1e-12 x lambda) is held there
+/// for the remaining steps while the others go on (the report's `collapsed_components`; not
+/// the largest component, nor with `restore_volume` or `restore_area`); as in smooth_conformal_flow().
 /// Named parameters as for smooth_laplacian_explicit().
 /// @throws Numerical_error when a factorisation or solve fails.
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,

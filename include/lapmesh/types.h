@@ -166,6 +166,15 @@ struct Enum_names<Time_step_unit>
   }};
 };
 
+/// A connected component that a smoothing flow shrank to nearly a point.
+struct Collapsed_component
+{
+  int iteration = 0;             ///< steps done when it was found (0: the input)
+  std::size_t first_vertex = 0;  ///< its smallest vertex index
+  std::size_t vertices = 0;      ///< its vertex count
+  double area_over_lambda = 0;   ///< its area (the sum of its vertex areas) / lambda then
+};
+
 /// What a smoothing run did. Times are wall-clock seconds spent in each phase.
 struct Smoothing_report
 {
@@ -188,6 +197,12 @@ struct Smoothing_report
   int factorizations = 0;            ///< numeric factorisations done
   int preconditioned_solves = 0;  ///< steps solved by CG with a previous factor
   int cg_iterations = 0;          ///< total CG iterations (all three coordinates)
+  /// Implicit flows whose operator follows the positions, without shape restoration: the
+  /// connected components that the flow shrank to nearly a point (area below 1e-12 x lambda,
+  /// where their part of M is lost beside lambda S), in the order found. Each is held where the
+  /// flow left it for the remaining steps while the other components go on; they are counted in
+  /// `free_vertices`.
+  std::vector<Collapsed_component> collapsed_components;
 };
 
 // ---- noise ----------------------------------------------------------------------------

@@ -766,6 +766,11 @@ PYBIND11_MODULE(_lapmesh, m)
       report["free_vertices"] = r.report.free_vertices;
       report["solver"] = r.report.solver;
       report["factorizations"] = r.report.factorizations;
+      py::list collapsed;
+      for(const auto& c : r.report.collapsed_components)
+        collapsed.append(py::dict(py::arg("iteration") = c.iteration, py::arg("first_vertex") = c.first_vertex,
+                                  py::arg("vertices") = c.vertices, py::arg("area_over_lambda") = c.area_over_lambda));
+      report["collapsed_components"] = collapsed;
       report["seconds"] = py::dict(py::arg("assembly") = r.report.assembly_seconds,
                                    py::arg("analysis") = r.report.analysis_seconds,
                                    py::arg("factorization") = r.report.factorization_seconds,

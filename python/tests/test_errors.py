@@ -262,3 +262,22 @@ def test_defects_of_real_meshes_take_the_intrinsic_laplacian(cow):
     with pytest.raises(lapmesh.ParameterError) as e:
         lapmesh.denoise_study(V, F, mollification=2.0, **study)
     assert e.value.parameter == "mollification"
+
+
+def test_component_shrunk_to_a_point_is_held_and_warned(meshes):
+    V, F = lapmesh.read_mesh(os.path.join(meshes, "sphere.off"))
+    V = V - V.mean(axis=0)
+    V = V / np.linalg.norm(V, axis=1).max()
+    # A unit sphere and a copy of radius 0.01 beside it, as one mesh of two components.
+    V2 = np.vstack([V, 0.01 * V + [3.0, 0.0, 0.0]])
+    F2 = np.vstack([F, F + len(V)])
+    with pytest.warns(lapmesh.LapmeshWarning, match="held there") as w:
+        S, report = lapmesh.smooth(V2, F2, scheme="implicit", lam=0.01, lambda_unit="absolute", iterations=6)
+    assert "(set fixed_operator=True)" in str(w[0].message)
+    assert report["iterations"] == 6
+    [held] = report["collapsed_components"]
+    assert held["first_vertex"] == len(V) and held["vertices"] == len(V)
+    assert 1 <= held["iteration"] <= 6 and held["area_over_lambda"] < 1e-12
+    # The large sphere's run is the one it takes alone.
+    alone, _ = lapmesh.smooth(V, F, scheme="implicit", lam=0.01, lambda_unit="absolute", iterations=6)
+    assert np.abs(S[: len(V)] - alone).max() < 1e-12

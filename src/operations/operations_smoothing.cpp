@@ -19,6 +19,23 @@ using lapmesh::message_number;
 // The text of an option as given, bounded: it goes into a one-line message.
 std::string bounded(const std::string& text) { return text.size() <= 40 ? text : text.substr(0, 40) + "..."; }
 
+// One line for the components a flow shrank to nearly a point and held there.
+std::string collapsed_components_message(const std::vector<lapmesh::Collapsed_component>& collapsed)
+{
+  const lapmesh::Collapsed_component& first = collapsed.front();
+  const std::string where = "the connected component of vertex " + std::to_string(first.first_vertex) + " (" +
+                            std::to_string(first.vertices) + " vertices) at iteration " +
+                            std::to_string(first.iteration);
+  if(collapsed.size() == 1)
+    return "the flow shrank " + where + " to nearly a point; it was held there for the remaining steps while the "
+                                        "other components went on";
+  std::size_t vertices = 0;
+  for(const auto& c : collapsed) vertices += c.vertices;
+  return "the flow shrank " + std::to_string(collapsed.size()) + " connected components (" +
+         std::to_string(vertices) + " vertices) to nearly a point, the first " + where +
+         "; each was held there for the remaining steps while the other components went on";
+}
+
 } // namespace
 
 Time_step parse_time_step(const std::string& text, lapmesh::Time_step_unit unit)
@@ -100,6 +117,8 @@ Smooth_result smooth_numbered(Mesh& mesh, const Smooth_settings& s, const Number
       break;
   }
   mesh = std::move(work);
+  if(!out.report.collapsed_components.empty())
+    out.warnings.push_back({collapsed_components_message(out.report.collapsed_components), {{"fixed_operator", "true"}}});
   if(explicit_scheme && out.lambda > out.stability_bound)
     out.warnings.push_back({"lambda " + message_number(out.lambda) + " exceeds the explicit stability bound " +
                               message_number(out.stability_bound),

@@ -262,6 +262,7 @@ private:
     m_system_scale = std::ldexp(1.0, -2 * (mass_exponent / 2));
     m_scaled_lambda = m_s.lambda * m_system_scale;
 
+    if(holds_collapsed_components()) prepare_holds();
     const int planned_factorizations = m_rebuild ? m_s.iterations : 1;
     m_solver = std::make_unique<Spd_direct_solver>(m_s.use_cholmod, m_s.external_solver);
     analyze_system(planned_factorizations);
@@ -419,27 +420,141 @@ private:
   void update_mesh(int it)
   {
     const auto t0 = Clock::now();
-    rebuild_operator_after(it, [&] {
-      if(m_rebuild_stiffness) {
-        assemble_operator();
-      } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
-        Laplacian_pencil current;
-        assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
-        m_pencil.mass = std::move(current.mass);
-      } else {
-        m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);
-      }
-      require_positive_mass(m_pencil.mass, m_s.area);
-    });
+    const bool held = hold_collapsed_components(it);
+    {
+      const Held_input_shown shown(*this);
+      rebuild_operator_after(it, [&] {
+        if(m_rebuild_stiffness) {
+          assemble_operator();
+        } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
+          Laplacian_pencil current;
+          assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
+          m_pencil.mass = std::move(current.mass);
+        } else {
+          m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);
+        }
+        require_positive_mass(m_pencil.mass, m_s.area);
+      });
+    }
     m_report.assembly_seconds += seconds_since(t0);
     m_factorized = false;
-    // The intrinsic Delaunay operator's pattern follows its flips: a new pattern needs a new
-    // free block and a new symbolic analysis.
-    if(!is_explicit() && pattern_may_change() && pattern_changed()) {
+    // A component held from now on leaves the free block; the intrinsic Delaunay operator's
+    // pattern follows its flips. Either needs a new free block and a new symbolic analysis.
+    if(held || (!is_explicit() && pattern_may_change() && pattern_changed())) {
       const auto t1 = Clock::now();
+      if(held) {
+        take_stiffness_from_factor_memory();  // the new analysis frees that memory
+        m_try_preconditioned_cg = false;      // no factor of the new block yet
+      }
       analyze_system(m_s.iterations - it);
       m_report.analysis_seconds += seconds_since(t1);
     }
+  }
+
+  /// Whether a component that the flow shrinks to nearly a point is held, so that the others go
+  /// on: implicit flows whose operator follows the positions, where M - lambda S is refactorised
+  /// each step, unless a restoration rescales the whole mesh (and would move a held component).
+  bool holds_collapsed_components() const { return !is_explicit() && m_rebuild && !m_restoration->rescales(); }
+
+  /// The component labels, and the input positions of every vertex outside the largest
+  /// component, where the mesh has several components.
+  void prepare_holds()
+  {
+    m_component = connected_component_labels(m_t, &m_components);
+    if(m_components < 2) {
+      std::vector<Index>().swap(m_component);
+      return;
+    }
+    std::vector<Index> size(std::size_t(m_components), 0);
+    for(Index c : m_component) ++size[std::size_t(c)];
+    m_largest_component = Index(std::max_element(size.begin(), size.end()) - size.begin());
+    for(Index v = 0; v < m_t.num_vertices; ++v)
+      if(m_component[v] != m_largest_component) m_spare_vertices.push_back(v);
+    m_spare_input.resize(Index(m_spare_vertices.size()), 3);
+    for(Index k = 0; k < Index(m_spare_vertices.size()); ++k) m_spare_input.row(k) = m_P.row(m_spare_vertices[k]);
+    hold_collapsed_components(0);
+  }
+
+  /// Holds (fixes) the free vertices of each component whose area after `it` steps is below
+  /// 1e-12 x lambda: its part of M is lost beside lambda S, whose null space holds the
+  /// component's constant vectors, so the factorisation fails or solves for rounding. The
+  /// components do not couple, so the others' steps are those they would take alone. A held
+  /// component's faces may have collapsed too: its rows, outside the system, are assembled from
+  /// its input positions (Held_input_shown). Not the largest component (whose input positions
+  /// are not kept), nor when nothing would be left free: the flow then ends as it would without
+  /// the hold (the errors of the assembly or of the factorisation). Returns whether any was
+  /// newly held.
+  bool hold_collapsed_components(int it)
+  {
+    if(m_component.empty()) return false;
+    const auto count = std::size_t(m_components);
+    std::vector<double> area(count, 0.0);
+    for(Index f = 0; f < m_t.num_faces; ++f) {
+      const auto [a, b, c] = face_points(m_t, m_P, f);
+      area[std::size_t(m_component[m_t.triangles[3 * f]])] += 0.5 * (b - a).cross(c - a).norm();
+    }
+    std::vector<Index> size(count, 0), free(count, 0), first(count, -1);
+    for(Index v = 0; v < m_t.num_vertices; ++v) {
+      const auto c = std::size_t(m_component[v]);
+      if(size[c]++ == 0) first[c] = v;
+      free[c] += m_free_mask[v];
+    }
+    std::vector<char> collapsed(count, 0);
+    Index held = 0, total_free = 0;
+    for(std::size_t c = 0; c < count; ++c) {
+      total_free += free[c];
+      if(free[c] > 0 && Index(c) != m_largest_component && area[c] < 1e-12 * m_s.lambda) {
+        collapsed[c] = 1;
+        held += free[c];
+      }
+    }
+    if(held == 0 || held == total_free) return false;
+    const Index before = Index(m_held_vertices.size());
+    for(Index v = 0; v < m_t.num_vertices; ++v) {
+      if(!collapsed[std::size_t(m_component[v])]) continue;
+      m_free_mask[v] = 0;
+      m_held_vertices.push_back(v);
+    }
+    m_held_positions.conservativeResize(Index(m_held_vertices.size()), 3);
+    for(Index k = before; k < Index(m_held_vertices.size()); ++k)
+      m_held_positions.row(k) = m_P.row(m_held_vertices[std::size_t(k)]);
+    for(std::size_t c = 0; c < count; ++c)
+      if(collapsed[c])
+        m_report.collapsed_components.push_back({it, std::size_t(first[c]), std::size_t(size[c]), area[c] / m_s.lambda});
+    return true;
+  }
+
+  /// While it lives, the held vertices show their input positions (for an assembly or its
+  /// checks, which their collapsed faces may fail); then where the flow left them again.
+  class Held_input_shown
+  {
+  public:
+    explicit Held_input_shown(Smoothing_worker& w) : m_w(w)
+    {
+      for(std::size_t k = 0; k < m_w.m_held_vertices.size(); ++k) {
+        const Index v = m_w.m_held_vertices[k];
+        const auto spare = std::lower_bound(m_w.m_spare_vertices.begin(), m_w.m_spare_vertices.end(), v);
+        m_w.m_P.row(v) = m_w.m_spare_input.row(Index(spare - m_w.m_spare_vertices.begin()));
+      }
+    }
+    ~Held_input_shown()
+    {
+      for(std::size_t k = 0; k < m_w.m_held_vertices.size(); ++k)
+        m_w.m_P.row(m_w.m_held_vertices[k]) = m_w.m_held_positions.row(Index(k));
+    }
+    Held_input_shown(const Held_input_shown&) = delete;
+    Held_input_shown& operator=(const Held_input_shown&) = delete;
+
+  private:
+    Smoothing_worker& m_w;
+  };
+
+  /// Moves a stiffness assembled into the factor's memory into m_pencil, for a new analysis.
+  void take_stiffness_from_factor_memory()
+  {
+    if(!m_stiffness_in_factor) return;
+    m_pencil.stiffness = Eigen::SparseMatrix<double>(stiffness());
+    m_stiffness_in_factor = nullptr;
   }
 
   /// The free block of the operator's pattern and its symbolic analysis, in the solver's order.
@@ -476,9 +591,10 @@ private:
   /// follows: the last step's positions get the checks of the next operator's assembly. Not the
   /// intrinsic Delaunay operator: it takes such faces, and its areas are those of its own
   /// triangulation, which is not rebuilt only for a check.
-  void check_last_positions() const
+  void check_last_positions()
   {
     if(!m_rebuild || m_s.laplacian == Laplacian::intrinsic_delaunay) return;
+    const Held_input_shown shown(*this);  // a held component is not assembled again
     rebuild_operator_after(m_s.iterations, [&] {
       if(m_s.area == Vertex_area::voronoi) {
         // The only kind of area that valid faces can make non-positive. Summed serially: the
@@ -668,13 +784,17 @@ private:
     Index components = 0;
     const std::vector<Index> component = connected_component_labels(m_t, &components);
     std::vector<double> area(std::size_t(components), 0.0);
-    std::vector<Index> size(std::size_t(components), 0);
+    std::vector<Index> size(std::size_t(components), 0), free(std::size_t(components), 0);
     for(Index v = 0; v < m_t.num_vertices; ++v) {
       area[std::size_t(component[v])] += m_pencil.mass[v];
       ++size[std::size_t(component[v])];
+      free[std::size_t(component[v])] += m_free_mask[v];
     }
-    const auto smallest = std::size_t(std::min_element(area.begin(), area.end()) - area.begin());
-    if(!(area[smallest] < 1e-12 * m_s.lambda)) return;
+    // Among the components in the system: a held one is not.
+    std::size_t smallest = area.size();
+    for(std::size_t c = 0; c < area.size(); ++c)
+      if(free[c] > 0 && (smallest == area.size() || area[c] < area[smallest])) smallest = c;
+    if(smallest == area.size() || !(area[smallest] < 1e-12 * m_s.lambda)) return;
     char ratio[32];
     std::snprintf(ratio, sizeof ratio, "%.2g", area[smallest] / m_s.lambda);
     const Index first = Index(std::find(component.begin(), component.end(), Index(smallest)) - component.begin());
@@ -694,6 +814,13 @@ private:
   Mesh_topology* m_releasable_topology;
   Smoothing_report m_report;
   std::vector<char> m_free_mask;
+  // Where holds_collapsed_components() and the mesh has several components: the component
+  // labels, the vertices outside the largest component with their input positions, and the held
+  // vertices with the positions where the flow left them.
+  std::vector<Index> m_component;
+  Index m_components = 0, m_largest_component = -1;
+  std::vector<Index> m_spare_vertices, m_held_vertices;
+  Positions m_spare_input, m_held_positions;
   std::optional<Shape_restoration> m_restoration;
   Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S
   Working_array<double> m_stiffness_values;  ///< S on the topology's pattern or on m_operator_* (explicit scheme)
