@@ -420,7 +420,7 @@ private:
   void update_mesh(int it)
   {
     const auto t0 = Clock::now();
-    const bool held = hold_collapsed_components(it);
+    hold_collapsed_components(it);
     {
       const Held_input_shown shown(*this);
       rebuild_operator_after(it, [&] {
@@ -438,14 +438,10 @@ private:
     }
     m_report.assembly_seconds += seconds_since(t0);
     m_factorized = false;
-    // A component held from now on leaves the free block; the intrinsic Delaunay operator's
-    // pattern follows its flips. Either needs a new free block and a new symbolic analysis.
-    if(held || (!is_explicit() && pattern_may_change() && pattern_changed())) {
+    // The intrinsic Delaunay operator's pattern follows its flips: a new pattern needs a new
+    // free block and a new symbolic analysis.
+    if(!is_explicit() && pattern_may_change() && pattern_changed()) {
       const auto t1 = Clock::now();
-      if(held) {
-        take_stiffness_from_factor_memory();  // the new analysis frees that memory
-        m_try_preconditioned_cg = false;      // no factor of the new block yet
-      }
       analyze_system(m_s.iterations - it);
       m_report.analysis_seconds += seconds_since(t1);
     }
@@ -468,6 +464,7 @@ private:
     std::vector<Index> size(std::size_t(m_components), 0);
     for(Index c : m_component) ++size[std::size_t(c)];
     m_largest_component = Index(std::max_element(size.begin(), size.end()) - size.begin());
+    m_held.assign(std::size_t(m_t.num_vertices), 0);
     for(Index v = 0; v < m_t.num_vertices; ++v)
       if(m_component[v] != m_largest_component) m_spare_vertices.push_back(v);
     m_spare_input.resize(Index(m_spare_vertices.size()), 3);
@@ -475,44 +472,44 @@ private:
     hold_collapsed_components(0);
   }
 
-  /// Holds (fixes) the free vertices of each component whose area after `it` steps is below
-  /// 1e-12 x lambda: its part of M is lost beside lambda S, whose null space holds the
-  /// component's constant vectors, so the factorisation fails or solves for rounding. The
-  /// components do not couple, so the others' steps are those they would take alone. A held
-  /// component's faces may have collapsed too: its rows, outside the system, are assembled from
-  /// its input positions (Held_input_shown). Not the largest component (whose input positions
-  /// are not kept), nor when nothing would be left free: the flow then ends as it would without
-  /// the hold (the errors of the assembly or of the factorisation). Returns whether any was
-  /// newly held.
-  bool hold_collapsed_components(int it)
+  /// Holds each component whose area after `it` steps is below 1e-12 x lambda where the flow
+  /// left it: its part of M is lost beside lambda S, whose null space holds the component's
+  /// constant vectors, so the factorisation fails or solves for rounding. Its rows of the system
+  /// become the identity's and their right-hand side its positions (the components do not
+  /// couple, so the pattern and its analysis stay, and the others' steps are those they would
+  /// take alone). Its faces may have collapsed too: its rows of the operator, unread, are
+  /// assembled from its input positions (Held_input_shown). Not the largest component (whose
+  /// input positions are not kept), nor when nothing would be left to move: the flow then ends
+  /// as it would without the hold (the errors of the assembly or of the factorisation).
+  void hold_collapsed_components(int it)
   {
-    if(m_component.empty()) return false;
+    if(m_component.empty()) return;
     const auto count = std::size_t(m_components);
     std::vector<double> area(count, 0.0);
     for(Index f = 0; f < m_t.num_faces; ++f) {
       const auto [a, b, c] = face_points(m_t, m_P, f);
       area[std::size_t(m_component[m_t.triangles[3 * f]])] += 0.5 * (b - a).cross(c - a).norm();
     }
-    std::vector<Index> size(count, 0), free(count, 0), first(count, -1);
+    std::vector<Index> size(count, 0), moving(count, 0), first(count, -1);
     for(Index v = 0; v < m_t.num_vertices; ++v) {
       const auto c = std::size_t(m_component[v]);
       if(size[c]++ == 0) first[c] = v;
-      free[c] += m_free_mask[v];
+      moving[c] += m_free_mask[v] && !m_held[v];
     }
     std::vector<char> collapsed(count, 0);
-    Index held = 0, total_free = 0;
+    Index held = 0, total_moving = 0;
     for(std::size_t c = 0; c < count; ++c) {
-      total_free += free[c];
-      if(free[c] > 0 && Index(c) != m_largest_component && area[c] < 1e-12 * m_s.lambda) {
+      total_moving += moving[c];
+      if(moving[c] > 0 && Index(c) != m_largest_component && area[c] < 1e-12 * m_s.lambda) {
         collapsed[c] = 1;
-        held += free[c];
+        held += moving[c];
       }
     }
-    if(held == 0 || held == total_free) return false;
+    if(held == 0 || held == total_moving) return;
     const Index before = Index(m_held_vertices.size());
     for(Index v = 0; v < m_t.num_vertices; ++v) {
       if(!collapsed[std::size_t(m_component[v])]) continue;
-      m_free_mask[v] = 0;
+      m_held[v] = 1;
       m_held_vertices.push_back(v);
     }
     m_held_positions.conservativeResize(Index(m_held_vertices.size()), 3);
@@ -521,7 +518,6 @@ private:
     for(std::size_t c = 0; c < count; ++c)
       if(collapsed[c])
         m_report.collapsed_components.push_back({it, std::size_t(first[c]), std::size_t(size[c]), area[c] / m_s.lambda});
-    return true;
   }
 
   /// While it lives, the held vertices show their input positions (for an assembly or its
@@ -548,14 +544,6 @@ private:
   private:
     Smoothing_worker& m_w;
   };
-
-  /// Moves a stiffness assembled into the factor's memory into m_pencil, for a new analysis.
-  void take_stiffness_from_factor_memory()
-  {
-    if(!m_stiffness_in_factor) return;
-    m_pencil.stiffness = Eigen::SparseMatrix<double>(stiffness());
-    m_stiffness_in_factor = nullptr;
-  }
 
   /// The free block of the operator's pattern and its symbolic analysis, in the solver's order.
   void analyze_system(int planned_factorizations)
@@ -671,13 +659,20 @@ private:
   }
 
   /// (M - lambda S)_FF, scaled.
-  void fill_matrix() { m_system->fill_matrix(stiffness().valuePtr(), -m_scaled_lambda, m_pencil.mass, m_system_scale); }
+  /// The rows of held components are the identity's (hold_collapsed_components()).
+  void fill_matrix()
+  {
+    m_system->fill_matrix(stiffness().valuePtr(), -m_scaled_lambda, m_pencil.mass, m_system_scale);
+    if(!m_held_vertices.empty()) m_system->set_identity_rows(m_held);
+  }
   /// M_FF P_F + lambda S_FB P_B, scaled as the matrix, into m_B (made here, its padding zero).
   void fill_rhs()
   {
     m_B.setZero(m_system->size(), Index(m_solver->row_width(3)));
     auto rhs = m_B.leftCols<3>();
     m_system->fill_rhs(stiffness(), -m_scaled_lambda, m_pencil.mass, m_system_scale, m_P, rhs, m_s.parallel);
+    for(Index v : m_held_vertices)
+      if(m_system->is_free(v)) rhs.row(m_system->free_index(v)) = m_P.row(v);
   }
 
   /// Preconditioned CG (three coordinates as one block with per-column step sizes), warm
@@ -788,7 +783,7 @@ private:
     for(Index v = 0; v < m_t.num_vertices; ++v) {
       area[std::size_t(component[v])] += m_pencil.mass[v];
       ++size[std::size_t(component[v])];
-      free[std::size_t(component[v])] += m_free_mask[v];
+      free[std::size_t(component[v])] += m_free_mask[v] && (m_held.empty() || !m_held[v]);
     }
     // Among the components in the system: a held one is not.
     std::size_t smallest = area.size();
@@ -820,6 +815,7 @@ private:
   std::vector<Index> m_component;
   Index m_components = 0, m_largest_component = -1;
   std::vector<Index> m_spare_vertices, m_held_vertices;
+  std::vector<char> m_held;  ///< per vertex
   Positions m_spare_input, m_held_positions;
   std::optional<Shape_restoration> m_restoration;
   Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S

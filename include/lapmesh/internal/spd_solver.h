@@ -118,6 +118,21 @@ public:
       if(m_free[i]) a[m_diagonal[m_free_index[i]]] += d[i] * d_scale;
   }
 
+  /// Makes the rows and columns of the free unknowns marked in `mask` those of the identity. For
+  /// unknowns that couple with no unmarked one, where the factorisation's pattern needs no
+  /// change: the solve then returns their right-hand side exactly.
+  void set_identity_rows(const std::vector<char>& mask)
+  {
+    double* a = m_A.valuePtr();
+    const Index* outer = m_A.outerIndexPtr();
+    for(Index i = 0; i < Index(m_free.size()); ++i) {
+      if(!m_free[i] || !mask[i]) continue;
+      const Index c = m_free_index[i];
+      std::fill(a + outer[c], a + outer[c + 1], 0.0);
+      a[m_diagonal[c]] = 1;
+    }
+  }
+
   /// Frees the slots of S that fill_matrix() reads, for a caller that fills the matrix no more:
   /// they are not held beside a factorisation of the last matrix.
   void release_fill_map() { std::vector<Index>().swap(m_source); }
