@@ -237,12 +237,9 @@ TEST(CliMessages, AComponentShrunkToAPointIsAWarningAndTheRunGoesOn)
 {
   // A unit sphere and one of radius 0.01 beside it: at lambda 0.01 the implicit flow shrinks the
   // small one to nearly a point at step 2, holds it there and smooths the large one on.
-  lapmesh::Triangle_soup soup = lapmesh::icosphere(3, 1.0);
-  const lapmesh::Triangle_soup small = lapmesh::icosphere(2, 0.01);
-  const int offset = int(soup.points.size());
-  for(auto p : small.points) soup.points.push_back({p[0] + 3.0, p[1], p[2]});
-  for(auto t : small.triangles) soup.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
-  const std::string in = write_mesh_file("two_spheres.off", soup);
+  const std::size_t offset = lapmesh::icosphere(3).points.size();
+  const std::size_t small = lapmesh::icosphere(2).points.size();
+  const std::string in = write_mesh_file("two_spheres.off", spheres({1.0, 0.01}));
   const std::string out = tmp("two_spheres_smoothed.off");
   std::filesystem::remove(out);
   const Cli_result r =
@@ -250,7 +247,7 @@ TEST(CliMessages, AComponentShrunkToAPointIsAWarningAndTheRunGoesOn)
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(count_lines(r.err), 1u) << r.err;
   EXPECT_EQ(r.err, in + ": warning: the flow shrank the connected component of vertex " + std::to_string(offset) + " (" +
-                     std::to_string(small.points.size()) +
+                     std::to_string(small) +
                      " vertices) at iteration 2 to nearly a point; it was held there for the remaining steps while "
                      "the other components went on (use --fixed-operator)\n");
   EXPECT_TRUE(std::filesystem::exists(out));

@@ -818,24 +818,6 @@ TEST(Denoising, AFlowThatShrinksOneComponentToAPointNamesIt)
   EXPECT_LT(std::stod(error.substr(error.find("its area is ") + 12)), 1e-12) << error;
 }
 
-namespace {
-// Spheres of the given radii, centred on the x axis 3 apart, as one mesh of several components.
-lapmesh::Triangle_soup spheres(const std::vector<double>& radii)
-{
-  lapmesh::Triangle_soup all;
-  for(std::size_t k = 0; k < radii.size(); ++k) {
-    const lapmesh::Triangle_soup one = lapmesh::icosphere(k == 0 ? 3 : 2, radii[k]);
-    const int offset = int(all.points.size());
-    for(auto p : one.points) {
-      p[0] += 3.0 * double(k);
-      all.points.push_back(p);
-    }
-    for(auto t : one.triangles) all.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
-  }
-  return all;
-}
-} // namespace
-
 // The implicit cotangent flow maps a sphere of radius r << sqrt(lambda) nearly onto its centre in
 // one step and, at the next, below 1e-12 x lambda in area, where its part of M is lost beside
 // lambda S. The flow holds that component where it is and goes on with the others, whose steps

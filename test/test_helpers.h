@@ -30,6 +30,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -51,6 +52,23 @@ Graph to_mesh(const lapmesh::Triangle_soup& soup)
 
 /// Path of a mesh of CGAL's data set (libcgal-demo), unpacked at configure time.
 inline std::string cgal_mesh(const std::string& name) { return std::string(LAPMESH_CGAL_MESHES) + "/" + name; }
+
+/// Icospheres of the given radii (the first of level 3, the others of level 2), centred on the x
+/// axis 3 apart, as one soup of several components.
+inline lapmesh::Triangle_soup spheres(const std::vector<double>& radii)
+{
+  lapmesh::Triangle_soup all;
+  for(std::size_t k = 0; k < radii.size(); ++k) {
+    const lapmesh::Triangle_soup one = lapmesh::icosphere(k == 0 ? 3 : 2, radii[k]);
+    const int offset = int(all.points.size());
+    for(auto p : one.points) {
+      p[0] += 3.0 * double(k);
+      all.points.push_back(p);
+    }
+    for(auto t : one.triangles) all.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  }
+  return all;
+}
 
 #ifdef LAPMESH_TEST_TMP
 /// A scratch directory of the running test, created on first use. ctest runs every TEST in a

@@ -485,24 +485,14 @@ private:
   {
     if(m_component.empty()) return;
     const auto count = std::size_t(m_components);
-    std::vector<double> area(count, 0.0);
-    for(Index f = 0; f < m_t.num_faces; ++f) {
-      const auto [a, b, c] = face_points(m_t, m_P, f);
-      area[std::size_t(m_component[m_t.triangles[3 * f]])] += 0.5 * (b - a).cross(c - a).norm();
-    }
-    std::vector<Index> size(count, 0), moving(count, 0), first(count, -1);
-    for(Index v = 0; v < m_t.num_vertices; ++v) {
-      const auto c = std::size_t(m_component[v]);
-      if(size[c]++ == 0) first[c] = v;
-      moving[c] += m_free_mask[v] && !m_held[v];
-    }
+    const Component_tally tally = tally_components(m_component, m_components);
     std::vector<char> collapsed(count, 0);
     Index held = 0, total_moving = 0;
     for(std::size_t c = 0; c < count; ++c) {
-      total_moving += moving[c];
-      if(moving[c] > 0 && Index(c) != m_largest_component && area[c] < 1e-12 * m_s.lambda) {
+      total_moving += tally.moving[c];
+      if(tally.moving[c] > 0 && Index(c) != m_largest_component && tally.area[c] < 1e-12 * m_s.lambda) {
         collapsed[c] = 1;
-        held += moving[c];
+        held += tally.moving[c];
       }
     }
     if(held == 0 || held == total_moving) return;
@@ -512,12 +502,46 @@ private:
       m_held[v] = 1;
       m_held_vertices.push_back(v);
     }
-    m_held_positions.conservativeResize(Index(m_held_vertices.size()), 3);
-    for(Index k = before; k < Index(m_held_vertices.size()); ++k)
-      m_held_positions.row(k) = m_P.row(m_held_vertices[std::size_t(k)]);
+    const Index total = Index(m_held_vertices.size());
+    m_held_positions.conservativeResize(total, 3);
+    m_held_input.conservativeResize(total, 3);
+    for(Index k = before; k < total; ++k) {
+      const Index v = m_held_vertices[std::size_t(k)];
+      m_held_positions.row(k) = m_P.row(v);
+      const auto spare = std::lower_bound(m_spare_vertices.begin(), m_spare_vertices.end(), v);
+      m_held_input.row(k) = m_spare_input.row(Index(spare - m_spare_vertices.begin()));
+    }
     for(std::size_t c = 0; c < count; ++c)
       if(collapsed[c])
-        m_report.collapsed_components.push_back({it, std::size_t(first[c]), std::size_t(size[c]), area[c] / m_s.lambda});
+        m_report.collapsed_components.push_back(
+          {it, std::size_t(tally.first[c]), std::size_t(tally.size[c]), tally.area[c] / m_s.lambda});
+  }
+
+  /// Per connected component (`component` labels `count` of them): its area at the current
+  /// positions (the sum of its faces'), its vertex count, its first vertex, and its vertices that
+  /// move (free, not held).
+  struct Component_tally
+  {
+    std::vector<double> area;
+    std::vector<Index> size, first, moving;
+  };
+  Component_tally tally_components(const std::vector<Index>& component, Index count) const
+  {
+    Component_tally tally;
+    tally.area.assign(std::size_t(count), 0.0);
+    tally.size.assign(std::size_t(count), 0);
+    tally.first.assign(std::size_t(count), -1);
+    tally.moving.assign(std::size_t(count), 0);
+    for(Index f = 0; f < m_t.num_faces; ++f) {
+      const auto [a, b, c] = face_points(m_t, m_P, f);
+      tally.area[std::size_t(component[m_t.triangles[3 * f]])] += 0.5 * (b - a).cross(c - a).norm();
+    }
+    for(Index v = 0; v < m_t.num_vertices; ++v) {
+      const auto c = std::size_t(component[v]);
+      if(tally.size[c]++ == 0) tally.first[c] = v;
+      tally.moving[c] += m_free_mask[v] && (m_held.empty() || !m_held[v]);
+    }
+    return tally;
   }
 
   /// While it lives, the held vertices show their input positions (for an assembly or its
@@ -527,11 +551,8 @@ private:
   public:
     explicit Held_input_shown(Smoothing_worker& w) : m_w(w)
     {
-      for(std::size_t k = 0; k < m_w.m_held_vertices.size(); ++k) {
-        const Index v = m_w.m_held_vertices[k];
-        const auto spare = std::lower_bound(m_w.m_spare_vertices.begin(), m_w.m_spare_vertices.end(), v);
-        m_w.m_P.row(v) = m_w.m_spare_input.row(Index(spare - m_w.m_spare_vertices.begin()));
-      }
+      for(std::size_t k = 0; k < m_w.m_held_vertices.size(); ++k)
+        m_w.m_P.row(m_w.m_held_vertices[k]) = m_w.m_held_input.row(Index(k));
     }
     ~Held_input_shown()
     {
@@ -772,30 +793,25 @@ private:
     m_report.factorization_seconds += seconds_since(t0);
   }
 
-  /// The error of a failed factorisation after `it` steps when a connected component's area
-  /// (its vertex areas' sum) is below 1e-12 x lambda; nothing otherwise.
+  /// The error of a failed factorisation after `it` steps when a connected component that moves
+  /// has an area (its faces') below 1e-12 x lambda; nothing otherwise.
   void throw_if_shrunk_to_a_point(int it) const
   {
     Index components = 0;
     const std::vector<Index> component = connected_component_labels(m_t, &components);
-    std::vector<double> area(std::size_t(components), 0.0);
-    std::vector<Index> size(std::size_t(components), 0), free(std::size_t(components), 0);
-    for(Index v = 0; v < m_t.num_vertices; ++v) {
-      area[std::size_t(component[v])] += m_pencil.mass[v];
-      ++size[std::size_t(component[v])];
-      free[std::size_t(component[v])] += m_free_mask[v] && (m_held.empty() || !m_held[v]);
-    }
-    // Among the components in the system: a held one is not.
+    const Component_tally tally = tally_components(component, components);
+    // Among the components that move: a held one does not.
+    const std::vector<double>& area = tally.area;
     std::size_t smallest = area.size();
     for(std::size_t c = 0; c < area.size(); ++c)
-      if(free[c] > 0 && (smallest == area.size() || area[c] < area[smallest])) smallest = c;
+      if(tally.moving[c] > 0 && (smallest == area.size() || area[c] < area[smallest])) smallest = c;
     if(smallest == area.size() || !(area[smallest] < 1e-12 * m_s.lambda)) return;
     char ratio[32];
     std::snprintf(ratio, sizeof ratio, "%.2g", area[smallest] / m_s.lambda);
-    const Index first = Index(std::find(component.begin(), component.end(), Index(smallest)) - component.begin());
     const std::string what = components == 1 ? std::string("the mesh")
-                                             : "the connected component of vertex " + std::to_string(first) + " (" +
-                                                 std::to_string(size[smallest]) + " vertices)";
+                                             : "the connected component of vertex " +
+                                                 std::to_string(tally.first[smallest]) + " (" +
+                                                 std::to_string(tally.size[smallest]) + " vertices)";
     throw Numerical_error("iteration " + std::to_string(it) + ": the flow shrank " + what +
                           " to nearly a point (its area is " + ratio +
                           " x lambda), and the Cholesky factorisation of M - lambda S for the next step failed (" +
@@ -811,12 +827,12 @@ private:
   std::vector<char> m_free_mask;
   // Where holds_collapsed_components() and the mesh has several components: the component
   // labels, the vertices outside the largest component with their input positions, and the held
-  // vertices with the positions where the flow left them.
+  // vertices with the positions where the flow left them and their input positions.
   std::vector<Index> m_component;
   Index m_components = 0, m_largest_component = -1;
   std::vector<Index> m_spare_vertices, m_held_vertices;
   std::vector<char> m_held;  ///< per vertex
-  Positions m_spare_input, m_held_positions;
+  Positions m_spare_input, m_held_positions, m_held_input;
   std::optional<Shape_restoration> m_restoration;
   Laplacian_pencil m_pencil;                 ///< (S, M); only M where m_stiffness_values holds S
   Working_array<double> m_stiffness_values;  ///< S on the topology's pattern or on m_operator_* (explicit scheme)
