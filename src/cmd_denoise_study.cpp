@@ -361,6 +361,9 @@ void run(const Study_options& o)
     if(line.stopped_runs > 0)
       std::cout << "  " << line.stopped_runs << " of " << line.runs << " runs stopped early (failed or diverged; the reason "
                 << "is in the CSV's error column), e.g. " << line.first_stop_reason << '\n';
+    if(line.held_runs > 0)
+      std::cout << "  " << line.held_runs << " of " << line.runs << " runs shrank a connected component to nearly a point "
+                << "and held it there (status 'held', left out of the best), e.g. " << line.first_hold << '\n';
   }
   if(const double coarsening = study.largest_hausdorff_coarsening(); coarsening > 1)
     std::cout << "Hausdorff grid coarsened, up to " << coarsening << " times the spacing asked, where it would have held more "

@@ -253,6 +253,50 @@ TEST(CliMessages, AComponentShrunkToAPointIsAWarningAndTheRunGoesOn)
   EXPECT_TRUE(std::filesystem::exists(out));
 }
 
+TEST(CliMessages, TheStudyMarksARunThatHeldAComponent)
+{
+  // The flow of the test above inside the study: its steps from the hold on are `held`, and
+  // the summary counts the run and names the component.
+  const std::string offset = std::to_string(lapmesh::icosphere(3).points.size());
+  const std::string small = std::to_string(lapmesh::icosphere(2).points.size());
+  const std::string in = write_mesh_file("two_spheres_study.off", spheres({1.0, 0.01}));
+  const std::string out = tmp("two_spheres_study.csv");
+  std::filesystem::remove(out);
+  const Cli_result r = run_lapmesh("denoise-study " + in + " -o " + out +
+                                   " --levels 0 --schemes implicit --laplacians cotangent --lambdas 0.01"
+                                   " --lambda-unit absolute --iterations 4 --area mixed --no-progress");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string held = "held: the connected component of vertex " + offset + " (" + small + " vertices) since iteration 2";
+  EXPECT_NE(r.out.find("  1 of 1 runs shrank a connected component to nearly a point and held it there (status 'held', "
+                       "left out of the best), e.g. cotangent lambda 0.01: " + held + "\n"),
+            std::string::npos)
+    << r.out;
+  const std::string csv = read_file(out);
+  std::size_t held_rows = 0;
+  const std::string row_end = ",held,\"" + held + "\"\n";
+  for(std::size_t at = csv.find(row_end); at != std::string::npos; at = csv.find(row_end, at + 1))
+    ++held_rows;
+  EXPECT_EQ(held_rows, 3u) << csv;  // iterations 2, 3 and 4
+  EXPECT_EQ(count_lines(csv), 1u + 5u) << csv;
+}
+
+TEST(CliMessages, AVertexAreaLostToACollapseIsNotBlamedOnTheKindOfArea)
+{
+  // The intrinsic Delaunay flow shrinks CGAL's u.off until its barycentric areas underflow to 0:
+  // the message names the faces, not the kind of area (a Voronoi area is the one to replace).
+  const std::string in = cgal_mesh("u.off");
+  const std::string out = tmp("u_never_smoothed.off");
+  const Cli_result r = run_lapmesh("smooth " + in + " -o " + out +
+                                   " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 10 --laplacian intrinsic-delaunay");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
+  EXPECT_EQ(r.err.rfind("lapmesh: " + in + ": iteration ", 0), 0u) << r.err;
+  const std::string tail = " has a non-positive barycentric area (0); the mass matrix must be positive: the faces around it have no area\n";
+  ASSERT_GT(r.err.size(), tail.size());
+  EXPECT_EQ(r.err.substr(r.err.size() - tail.size()), tail) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 TEST(CliMessages, ACollapseDuringSmoothingNamesTheIteration)
 {
   // The cotangent flow (operator rebuilt every step) pinches the cow's thin parts; the input

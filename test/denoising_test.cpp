@@ -868,6 +868,49 @@ TEST(Denoising, AComponentShrunkToAPointIsHeldWhileTheOthersGoOn)
   EXPECT_EQ(error.rfind("iteration 2: the flow shrank the connected component of vertex ", 0), 0u) << error;
 }
 
+// In the study, a run whose flow holds a collapsed component is marked `held` from the step
+// that shrank it on (naming it), keeps its measurements, and is left out of the best run; a
+// time step too small to collapse anything leaves its run `ok`.
+TEST(Denoising, StudyMarksTheStepsAfterAComponentWasHeld)
+{
+  const Mesh clean = to_mesh(spheres({1.0, 0.01}));
+  const std::size_t big = lapmesh::icosphere(3).points.size(), small = num_vertices(clean) - big;
+  lapmesh::Denoising_study_settings s;
+  s.noise_levels = {0.0};
+  s.schemes = {lapmesh::Smoothing_scheme::implicit_euler};
+  s.laplacians = {lapmesh::Laplacian::cotangent};
+  s.unit = lapmesh::Time_step_unit::absolute;
+  s.time_steps = {1e-6, 0.01};
+  s.iterations = 5;
+  s.area = lapmesh::Vertex_area::mixed;
+  const lapmesh::Denoising_study study = lapmesh::run_denoising_study(clean, s);
+  ASSERT_EQ(study.records.size(), 2u * 6u);
+
+  // The same flow outside the study: where it holds the small sphere, and the positions then.
+  Mesh alone = clean;
+  const auto report = lapmesh::smooth_laplacian_implicit(
+    alone, 0.01, LP::vertex_area(lapmesh::Vertex_area::mixed, CGAL::parameters::number_of_iterations(s.iterations)));
+  ASSERT_EQ(report.collapsed_components.size(), 1u);
+  const int held_at = report.collapsed_components[0].iteration;
+  ASSERT_GE(held_at, 1);
+  ASSERT_LT(held_at, s.iterations);
+  const lapmesh::Mesh_deviation last = lapmesh::mesh_deviation(clean, alone);
+
+  const std::string reason = "held: the connected component of vertex " + std::to_string(big) + " (" +
+                             std::to_string(small) + " vertices) since iteration " + std::to_string(held_at);
+  for(const lapmesh::Denoising_record& r : study.records) {
+    const bool held = r.time_step == 0.01 && r.iteration >= held_at;
+    EXPECT_EQ(r.status, held ? lapmesh::Run_status::held : lapmesh::Run_status::ok) << r.time_step << ", " << r.iteration;
+    EXPECT_EQ(r.message, held ? reason : "") << r.time_step << ", " << r.iteration;
+    EXPECT_TRUE(std::isfinite(r.deviation.rms_distance)) << r.time_step << ", " << r.iteration;
+  }
+  const lapmesh::Denoising_record& final_held = study.records.back();
+  EXPECT_NEAR(final_held.deviation.rms_distance, last.rms_distance, 1e-12 * last.rms_distance);
+  const auto best = study.best(0.0, lapmesh::Smoothing_scheme::implicit_euler);
+  ASSERT_TRUE(best.has_value());
+  EXPECT_EQ(best->status, lapmesh::Run_status::ok);
+}
+
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
 // sum of positive semidefinite element matrices. A one-step flow on a mesh full of obtuse
 // triangles factorises at any lambda.

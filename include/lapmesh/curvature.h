@@ -98,7 +98,7 @@ inline void require_positive_vertex_areas(const Eigen::VectorXd& areas, Vertex_a
   for(Index v = 0; v < Index(areas.size()); ++v)
     if(!(areas[v] > 0))
       throw Mesh_error("vertex " + std::to_string(v) + " has a non-positive " + to_string(area) +
-                         " area, so its curvature is undefined: use the mixed or barycentric area",
+                         " area, so its curvature is undefined: " + non_positive_area_remedy(area),
                        Mesh_error::Element::vertex, v);
 }
 

@@ -184,6 +184,23 @@ namespace internal {
 
 struct Stop_run {};
 
+/// Marks `held` the records [first, last) of one run (one per step, in order) from the step at
+/// which a component collapsed on, each naming the components held by then.
+template <typename RecordIterator>
+void mark_held_records(RecordIterator first, RecordIterator last, const std::vector<Collapsed_component>& held)
+{
+  for(; first != last; ++first) {
+    for(const Collapsed_component& c : held)
+      if(c.iteration <= first->iteration) {
+        if(first->message.empty()) first->message = "held:";
+        else first->message += ';';
+        first->message += " the connected component of vertex " + std::to_string(c.first_vertex) + " (" +
+                          std::to_string(c.vertices) + " vertices) since iteration " + std::to_string(c.iteration);
+        first->status = Run_status::held;
+      }
+  }
+}
+
 inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positions& clean,
                                            const Denoising_study_settings& s, bool parallel = false)
 {
@@ -285,7 +302,8 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
             if(!bound_error.empty()) throw Mesh_error(bound_error);
             if(!(base.lambda > 0) || !std::isfinite(base.lambda))
               throw std::invalid_argument("the time step is not a positive finite number");
-            smooth_positions(t, P, no_constraints, settings);
+            const Smoothing_report report = smooth_positions(t, P, no_constraints, settings);
+            mark_held_records(study.records.end() - done, study.records.end(), report.collapsed_components);
           } catch(const Stop_run&) {
           } catch(const Numerical_error& e) {
             // The explicit scheme's divergence check (non-finite positions) lands here too.
@@ -323,7 +341,9 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
 ///
 /// Runs whose RMS distance exceeds one bounding-box diagonal are stopped and marked
 /// `diverged`; runs stopped by an error (a collapsed face, a failed factorisation) are marked
-/// `failed`; their remaining records hold NaN. Named parameters: `vertex_point_map`,
+/// `failed`; their remaining records hold NaN. Records after a step that shrank one of several
+/// connected components to nearly a point are marked `held`: the flow held it there and went
+/// on with the others (Smoothing_report::collapsed_components). Named parameters: `vertex_point_map`,
 /// `vertex_index_map`. `tm` is not modified. With `CGAL::Parallel_tag` the Hausdorff samples of
 /// each measurement are searched in parallel (TBB); the records are the same.
 template <typename ConcurrencyTag = CGAL::Sequential_tag, typename TriangleMesh,

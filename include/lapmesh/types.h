@@ -269,17 +269,21 @@ struct Mesh_deviation
 enum class Run_status {
   ok,        ///< finite and within one bounding-box diagonal of the clean mesh
   diverged,  ///< the RMS distance exceeded one bounding-box diagonal or became non-finite
-  failed     ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
+  failed,    ///< the smoothing stopped with an error (e.g. a face collapsed to zero area)
+  /// finite and bounded, but the flow shrank a connected component to nearly a point and it is
+  /// held there (Smoothing_report::collapsed_components): from the step that shrank it on
+  held
 };
 /// The name table of Run_status.
 template <>
 struct Enum_names<Run_status>
 {
   /// The names of the Run_status enumerators, in display order.
-  static constexpr std::array<Named<Run_status>, 3> table{{
+  static constexpr std::array<Named<Run_status>, 4> table{{
     {Run_status::ok, "ok", "finite and within one bounding-box diagonal"},
     {Run_status::diverged, "diverged", "the RMS distance exceeded one diagonal or is not finite"},
     {Run_status::failed, "failed", "the smoothing stopped with an error"},
+    {Run_status::held, "held", "a component shrunk to nearly a point is held where the flow left it"},
   }};
 };
 
@@ -332,7 +336,7 @@ struct Denoising_record
   int iteration = 0;                   ///< steps done (0: the noisy mesh)
   Mesh_deviation deviation;            ///< the metrics against the clean mesh
   Run_status status = Run_status::ok;  ///< how the run stands after this step
-  std::string message;  ///< the error, for failed runs
+  std::string message;  ///< the error of failed and diverged runs; the held components of held ones
 };
 
 /// The records of a denoising study, and the best run per noise level and scheme.
@@ -341,7 +345,8 @@ struct Denoising_study
   std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration
 
   /// The record with the smallest RMS distance among the `ok` records after at least one
-  /// step for this level and scheme (all Laplacians and time steps), if any.
+  /// step for this level and scheme (all Laplacians and time steps), if any. `held` records
+  /// are left out: one of their components has collapsed to a point.
   std::optional<Denoising_record> best(double level, Smoothing_scheme scheme) const
   {
     std::optional<Denoising_record> out;

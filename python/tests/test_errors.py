@@ -281,3 +281,11 @@ def test_component_shrunk_to_a_point_is_held_and_warned(meshes):
     # The large sphere's run is the one it takes alone.
     alone, _ = lapmesh.smooth(V, F, scheme="implicit", lam=0.01, lambda_unit="absolute", iterations=6)
     assert np.abs(S[: len(V)] - alone).max() < 1e-12
+    # In the denoising study the same flow's steps from the hold on are `held`, naming it.
+    study = lapmesh.denoise_study(V2, F2, levels=[0.0], schemes=["implicit"], laplacians=["cotangent"],
+                                  lambdas=[0.01], lambda_unit="absolute", iterations=6)
+    since = held["iteration"]
+    assert study["status"] == ["ok"] * since + ["held"] * (7 - since)
+    reason = "held: the connected component of vertex %d (%d vertices) since iteration %d" % (len(V), len(V), since)
+    assert study["error"] == [""] * since + [reason] * (7 - since)
+    assert np.isfinite(study["rms_distance"]).all()

@@ -304,8 +304,8 @@ void check(const lapmesh::Denoising_study_settings& settings);
 /// Noise, smoothing and measurement for every combination of the settings (denoising.h).
 lapmesh::Denoising_study denoise_study(const Mesh& mesh, const lapmesh::Denoising_study_settings& settings);
 
-/// One line per noise level and scheme: the best run, whether it beat the noisy mesh, and
-/// the runs that stopped early.
+/// One line per noise level and scheme: the best run, whether it beat the noisy mesh, the
+/// runs that stopped early and those that held a collapsed component.
 struct Study_summary_line
 {
   double noise_level = 0;
@@ -313,8 +313,9 @@ struct Study_summary_line
   double noisy_rms = 0;                              ///< RMS distance of the noisy mesh
   std::optional<lapmesh::Denoising_record> best;     ///< the best bounded run, if any
   bool best_is_worse_than_noisy = false;
-  std::size_t runs = 0, stopped_runs = 0;
+  std::size_t runs = 0, stopped_runs = 0, held_runs = 0;
   std::string first_stop_reason;                     ///< "LAPLACIAN lambda TAU: message"
+  std::string first_hold;                            ///< the same for the first held run
 };
 std::vector<Study_summary_line> summarize(const lapmesh::Denoising_study& study,
                                           const lapmesh::Denoising_study_settings& settings);

@@ -183,13 +183,14 @@ std::vector<Study_summary_line> summarize(const lapmesh::Denoising_study& study,
       for(const auto& r : study.records)
         if(r.noise_level == level && r.scheme == scheme && r.iteration == s.iterations) {
           ++line.runs;
-          if(r.status != lapmesh::Run_status::ok) {
-            ++line.stopped_runs;
-            if(line.first_stop_reason.empty()) {
-              char tau[32];
-              std::snprintf(tau, sizeof tau, "%.3g", r.time_step);
-              line.first_stop_reason = std::string(lapmesh::to_string(r.laplacian)) + " lambda " + tau + ": " + r.message;
-            }
+          if(r.status == lapmesh::Run_status::ok) continue;
+          const bool held = r.status == lapmesh::Run_status::held;
+          ++(held ? line.held_runs : line.stopped_runs);
+          std::string& reason = held ? line.first_hold : line.first_stop_reason;
+          if(reason.empty()) {
+            char tau[32];
+            std::snprintf(tau, sizeof tau, "%.3g", r.time_step);
+            reason = std::string(lapmesh::to_string(r.laplacian)) + " lambda " + tau + ": " + r.message;
           }
         }
       lines.push_back(std::move(line));

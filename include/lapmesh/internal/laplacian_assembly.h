@@ -206,6 +206,14 @@ inline Eigen::VectorXd vertex_areas(const Mesh_topology& t, const Positions& P, 
   return std::move(g.vertex_area);
 }
 
+/// What makes a vertex area non-positive, for the messages that name such a vertex: valid
+/// obtuse faces make a Voronoi area negative, but the other areas sum non-negative parts of
+/// the faces around the vertex, so only faces without area (e.g. collapsed by a flow) do.
+inline const char* non_positive_area_remedy(Vertex_area area)
+{
+  return area == Vertex_area::voronoi ? "use the mixed or barycentric area" : "the faces around it have no area";
+}
+
 /// Throws Mesh_error naming the first vertex with a non-positive mass. The spectral and
 /// smoothing solvers need M positive definite; the Voronoi area can fail this on obtuse meshes.
 inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
@@ -213,8 +221,8 @@ inline void require_positive_mass(const Eigen::VectorXd& mass, Vertex_area area)
   for(Eigen::Index i = 0; i < mass.size(); ++i)
     if(!(mass[i] > 0))
       throw Mesh_error("vertex " + std::to_string(i) + " has a non-positive " + to_string(area) +
-                         " area (" + message_number(mass[i]) +
-                         "); the mass matrix must be positive: use the mixed or barycentric area",
+                         " area (" + message_number(mass[i]) + "); the mass matrix must be positive: " +
+                         non_positive_area_remedy(area),
                        Mesh_error::Element::vertex, i);
 }
 
