@@ -280,23 +280,6 @@ TEST(CliMessages, TheStudyMarksARunThatHeldAComponent)
   EXPECT_EQ(count_lines(csv), 1u + 5u) << csv;
 }
 
-TEST(CliMessages, AVertexAreaLostToACollapseIsNotBlamedOnTheKindOfArea)
-{
-  // The intrinsic Delaunay flow shrinks CGAL's u.off until its barycentric areas underflow to 0:
-  // the message names the faces, not the kind of area (a Voronoi area is the one to replace).
-  const std::string in = cgal_mesh("u.off");
-  const std::string out = tmp("u_never_smoothed.off");
-  const Cli_result r = run_lapmesh("smooth " + in + " -o " + out +
-                                   " --scheme implicit --lambda 1 --lambda-unit edge2 --iterations 10 --laplacian intrinsic-delaunay");
-  EXPECT_EQ(r.status, 1);
-  EXPECT_EQ(count_lines(r.err), 1u) << r.err;
-  EXPECT_EQ(r.err.rfind("lapmesh: " + in + ": iteration ", 0), 0u) << r.err;
-  const std::string tail = " has a non-positive barycentric area (0); the mass matrix must be positive: the faces around it have no area\n";
-  ASSERT_GT(r.err.size(), tail.size());
-  EXPECT_EQ(r.err.substr(r.err.size() - tail.size()), tail) << r.err;
-  EXPECT_FALSE(std::filesystem::exists(out));
-}
-
 TEST(CliMessages, ACollapseDuringSmoothingNamesTheIteration)
 {
   // The cotangent flow (operator rebuilt every step) pinches the cow's thin parts; the input

@@ -285,6 +285,28 @@ TEST(Operators, InvalidMeshesAreReportedWithTheElement)
   EXPECT_THROW(lapmesh::internal::require_positive_mass(voronoi, lapmesh::Vertex_area::voronoi), lapmesh::Mesh_error);
   EXPECT_NO_THROW(lapmesh::internal::require_positive_mass(
     lapmesh::vertex_areas(obtuse, LP::vertex_area(lapmesh::Vertex_area::mixed)), lapmesh::Vertex_area::mixed));
+  // The advice fits the kind of area: a Voronoi area is the one to replace, while a barycentric
+  // or mixed one is non-positive only where the faces around the vertex have no area (a flow
+  // can shrink them until they underflow, as on CGAL's u.off).
+  auto message = [](auto&& check) {
+    try {
+      check();
+    } catch(const lapmesh::Mesh_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const Eigen::VectorXd lost = (Eigen::VectorXd(3) << 0.5, 0.0, 0.25).finished();
+  for(const lapmesh::Vertex_area area : {lapmesh::Vertex_area::barycentric, lapmesh::Vertex_area::mixed}) {
+    const std::string kind = lapmesh::to_string(area);
+    EXPECT_EQ(message([&] { lapmesh::internal::require_positive_mass(lost, area); }),
+              "vertex 1 has a non-positive " + kind +
+                " area (0); the mass matrix must be positive: the faces around it have no area");
+    EXPECT_EQ(message([&] { lapmesh::internal::require_positive_vertex_areas(lost, area); }),
+              "vertex 1 has a non-positive " + kind + " area, so its curvature is undefined: the faces around it have no area");
+  }
+  EXPECT_EQ(message([&] { lapmesh::internal::require_positive_mass(lost, lapmesh::Vertex_area::voronoi); }),
+            "vertex 1 has a non-positive voronoi area (0); the mass matrix must be positive: use the mixed or barycentric area");
 }
 
 TEST(Operators, TopologyMarksNonManifoldEdgesAndMixedOrientation)
