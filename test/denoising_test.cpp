@@ -909,6 +909,14 @@ TEST(Denoising, StudyMarksTheStepsAfterAComponentWasHeld)
   const auto best = study.best(0.0, lapmesh::Smoothing_scheme::implicit_euler);
   ASSERT_TRUE(best.has_value());
   EXPECT_EQ(best->status, lapmesh::Run_status::ok);
+  // Here every later step is further from the clean mesh, so the best is `ok` whether or not
+  // held rows count: a held row made closer than every `ok` one shows that they do not.
+  lapmesh::Denoising_study closer = study;
+  closer.records.back().deviation.rms_distance = 0.5 * best->deviation.rms_distance;
+  const auto still = closer.best(0.0, lapmesh::Smoothing_scheme::implicit_euler);
+  ASSERT_TRUE(still.has_value());
+  EXPECT_EQ(still->status, lapmesh::Run_status::ok);
+  EXPECT_EQ(still->deviation.rms_distance, best->deviation.rms_distance);
 }
 
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
