@@ -40,6 +40,7 @@
 
 #include <cstddef>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -401,9 +402,14 @@ private:
     cholmod_factor* L = m_cholmodFactor;
     m_factorizationIsOk = true;
     m_info = Eigen::NumericalIssue;
-    // Made for each factorisation, on a view of the factor's structure: a copy, or its work
-    // space kept, would add to the peak of a smoothing step and to the memory of the solves.
-    Supernodal_ldlt ldlt(*L, Supernodal_ldlt::Structure_use::view);
+    // On a view of the factor's structure. Kept for the next factorisation where the analysis
+    // serves several (a smoothing run): made afresh, its arrays fault in their pages again at
+    // every step. Made for this factorisation alone otherwise: kept, its work space would add
+    // to the memory of the solves.
+    std::optional<Supernodal_ldlt> single_use;
+    if(m_planned_factorizations > 1 && !m_kept_ldlt) m_kept_ldlt.emplace(*L, Supernodal_ldlt::Structure_use::view);
+    Supernodal_ldlt& ldlt =
+      m_planned_factorizations > 1 ? *m_kept_ldlt : single_use.emplace(*L, Supernodal_ldlt::Structure_use::view);
     // A matrix in the given order is already in the factor's order: no permuted copy.
     const MatrixType permuted = in_given_order() ? MatrixType() : ldlt.permuted_lower(A);
     const MatrixType& lower = in_given_order() ? A : permuted;
@@ -418,6 +424,7 @@ private:
 
   void analyze_once(const MatrixType& A)
   {
+    m_kept_ldlt.reset();  // it views the structure of the factor that the analysis replaces
     {
       Serial_openmp_scope serial;
       Base::analyzePattern(A);
@@ -475,6 +482,7 @@ private:
     d.dtype = CHOLMOD_DOUBLE;
     return d;
   }
+  std::optional<Supernodal_ldlt> m_kept_ldlt;  // lapmesh's factorisation on the last analysis
   mutable std::vector<double> m_rhs;  // scaled_solve()'s right-hand sides, permuted and scaled
   mutable Eigen::MatrixXd m_work;     // CHOLMOD's work space
 };

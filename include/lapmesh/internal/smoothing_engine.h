@@ -399,7 +399,8 @@ private:
     if(!solved) {
       // The right-hand side reads the stiffness for the fixed vertices' terms alone, and
       // factorize() may release it (or write over it): with fixed vertices it is filled first,
-      // otherwise after the factorisation, so that its block does not stand beside the factor's.
+      // otherwise after the factorisation, so that its block does not stand beside the first
+      // factorisation's work space.
       const bool rhs_first = !m_system->all_free();
       const auto t0 = Clock::now();
       if(rhs_first) fill_rhs();
@@ -413,7 +414,6 @@ private:
       m_report.solve_seconds += seconds_since(t1);
     }
     m_system->scatter(m_B.leftCols<3>(), m_P);
-    Row_block().swap(m_B);  // not held beside the next step's assembly and factorisation
   }
 
   /// Rebuilds the operator (or only the mass, conformal flow) from the positions after `it` steps.
@@ -686,10 +686,13 @@ private:
     m_system->fill_matrix(stiffness().valuePtr(), -m_scaled_lambda, m_pencil.mass, m_system_scale);
     if(!m_held_vertices.empty()) m_system->set_identity_rows(m_held);
   }
-  /// M_FF P_F + lambda S_FB P_B, scaled as the matrix, into m_B (made here, its padding zero).
+  /// M_FF P_F + lambda S_FB P_B, scaled as the matrix, into m_B (its padding zero).
+  /// The block is kept from step to step: made afresh at every step, a large one faults in its
+  /// pages again each time, which costs more than holding it beside the next factorisation.
   void fill_rhs()
   {
-    m_B.setZero(m_system->size(), Index(m_solver->row_width(3)));
+    const Index rows = m_system->size(), width = Index(m_solver->row_width(3));
+    if(m_B.rows() != rows || m_B.cols() != width) m_B.setZero(rows, width);  // the solves keep the padding zero
     auto rhs = m_B.leftCols<3>();
     m_system->fill_rhs(stiffness(), -m_scaled_lambda, m_pencil.mass, m_system_scale, m_P, rhs, m_s.parallel);
     for(Index v : m_held_vertices)
