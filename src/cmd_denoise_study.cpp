@@ -210,14 +210,15 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
         final_of_run.empty_note = "no run reached iteration " + std::to_string(s.iterations) + ": see the CSV's error column";
         final_of_run.dashed = true;
         for(double tau : s.time_steps) {
-          double run_best = std::numeric_limits<double>::infinity(), run_final = std::nan("");
+          const auto best_step = study.best(level, scheme, lap, tau);
+          const double run_best = best_step ? best_step->deviation.rms_distance : std::numeric_limits<double>::infinity();
+          double run_final = std::nan("");
           for(const auto& r : study.records)
-            if(r.noise_level == level && r.scheme == scheme && r.laplacian == lap && r.time_step == tau && r.iteration > 0) {
-              if(r.status == lapmesh::Run_status::ok) run_best = std::min(run_best, r.deviation.rms_distance);
-              if(r.iteration == s.iterations) run_final = r.status == lapmesh::Run_status::ok ? r.deviation.rms_distance : std::nan("");
-            }
+            if(r.noise_level == level && r.scheme == scheme && r.laplacian == lap && r.time_step == tau &&
+               r.iteration == s.iterations && lapmesh::Denoising_study::counts_for_best(r))
+              run_final = r.deviation.rms_distance;
           best_of_run.x.push_back(tau);
-          best_of_run.y.push_back(std::isfinite(run_best) ? run_best : std::nan(""));
+          best_of_run.y.push_back(best_step ? run_best : std::nan(""));
           final_of_run.x.push_back(tau);
           final_of_run.y.push_back(run_final);
           if(run_best < best_rms) {

@@ -19,6 +19,7 @@
 #include <tbb/task_arena.h>
 #endif
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -917,6 +918,16 @@ TEST(Denoising, StudyMarksTheStepsAfterAComponentWasHeld)
   ASSERT_TRUE(still.has_value());
   EXPECT_EQ(still->status, lapmesh::Run_status::ok);
   EXPECT_EQ(still->deviation.rms_distance, best->deviation.rms_distance);
+  // The best step of the held run alone: its closest `ok` row, never the made-up held one.
+  const auto run_best = closer.best(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::cotangent, 0.01);
+  ASSERT_TRUE(run_best.has_value());
+  double closest_ok = std::numeric_limits<double>::infinity();
+  for(const lapmesh::Denoising_record& r : closer.records)
+    if(r.time_step == 0.01 && r.iteration >= 1 && r.iteration < held_at) closest_ok = std::min(closest_ok, r.deviation.rms_distance);
+  EXPECT_EQ(run_best->deviation.rms_distance, closest_ok);
+  EXPECT_EQ(run_best->time_step, 0.01);
+  EXPECT_LT(run_best->iteration, held_at);
+  EXPECT_FALSE(closer.best(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::uniform, 0.01).has_value());
 }
 
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a

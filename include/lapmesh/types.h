@@ -344,17 +344,27 @@ struct Denoising_study
 {
   std::vector<Denoising_record> records;  ///< level-major, then scheme, Laplacian, time step, iteration
 
-  /// The record with the smallest RMS distance among the `ok` records after at least one
-  /// step for this level and scheme (all Laplacians and time steps), if any. `held` records
-  /// are left out: one of their components has collapsed to a point.
+  /// Whether a record can be a best one: an `ok` state after at least one step with a finite RMS
+  /// distance. `held` records are left out: one of their components has collapsed to a point.
+  static bool counts_for_best(const Denoising_record& r)
+  {
+    return r.iteration > 0 && r.status == Run_status::ok && std::isfinite(r.deviation.rms_distance);
+  }
+
+  /// The record with the smallest RMS distance among those that counts_for_best() for this
+  /// level and scheme (all Laplacians and time steps), if any.
   std::optional<Denoising_record> best(double level, Smoothing_scheme scheme) const
   {
-    std::optional<Denoising_record> out;
-    for(const auto& r : records)
-      if(r.noise_level == level && r.scheme == scheme && r.iteration > 0 && r.status == Run_status::ok &&
-         std::isfinite(r.deviation.rms_distance) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
-        out = r;
-    return out;
+    return best_where([&](const Denoising_record& r) { return r.noise_level == level && r.scheme == scheme; });
+  }
+  /// The same for the one run of this level, scheme, Laplacian and time step (in the settings'
+  /// unit): its best iteration.
+  std::optional<Denoising_record> best(double level, Smoothing_scheme scheme, Laplacian laplacian,
+                                       double time_step) const
+  {
+    return best_where([&](const Denoising_record& r) {
+      return r.noise_level == level && r.scheme == scheme && r.laplacian == laplacian && r.time_step == time_step;
+    });
   }
 
   /// The largest Mesh_deviation::hausdorff_coarsening of the records (1: every grid as asked).
@@ -364,6 +374,17 @@ struct Denoising_study
     for(const auto& r : records)
       if(r.deviation.hausdorff_coarsening > largest) largest = r.deviation.hausdorff_coarsening;
     return largest;
+  }
+
+private:
+  template <typename Selected>
+  std::optional<Denoising_record> best_where(const Selected& selected) const
+  {
+    std::optional<Denoising_record> out;
+    for(const auto& r : records)
+      if(selected(r) && counts_for_best(r) && (!out || r.deviation.rms_distance < out->deviation.rms_distance))
+        out = r;
+    return out;
   }
 };
 
