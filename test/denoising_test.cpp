@@ -930,6 +930,61 @@ TEST(Denoising, StudyMarksTheStepsAfterAComponentWasHeld)
   EXPECT_FALSE(closer.best(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::uniform, 0.01).has_value());
 }
 
+// A run that holds a component and fails at a later step keeps its steps from the hold on
+// `held`: the holds are collected as they happen, not taken from the report that the failure
+// loses. Here the small sphere is held, and the large one then shrinks until a step fails.
+TEST(Denoising, StudyKeepsTheHeldStepsOfARunThatFailsLater)
+{
+  const Mesh clean = to_mesh(spheres({1.0, 0.01}));
+  const std::size_t big = lapmesh::icosphere(3).points.size(), small = num_vertices(clean) - big;
+  constexpr double lambda = 0.1;
+  lapmesh::Denoising_study_settings s;
+  s.noise_levels = {0.0};
+  s.schemes = {lapmesh::Smoothing_scheme::implicit_euler};
+  s.laplacians = {lapmesh::Laplacian::cotangent};
+  s.unit = lapmesh::Time_step_unit::absolute;
+  s.time_steps = {lambda};
+  s.iterations = 12;
+  s.area = lapmesh::Vertex_area::mixed;
+  const auto flow = [&](Mesh& m, int iterations) {
+    return lapmesh::smooth_laplacian_implicit(
+      m, lambda, LP::vertex_area(lapmesh::Vertex_area::mixed, CGAL::parameters::number_of_iterations(iterations)));
+  };
+  // The same flow outside the study: the step that holds the small sphere, and the failure.
+  int held_at = 0;
+  for(int iterations = 1; iterations <= s.iterations && held_at == 0; ++iterations) {
+    Mesh m = clean;
+    const auto report = flow(m, iterations);
+    if(!report.collapsed_components.empty()) held_at = report.collapsed_components[0].iteration;
+  }
+  ASSERT_GE(held_at, 1);
+  Mesh whole = clean;
+  EXPECT_THROW(flow(whole, s.iterations), std::runtime_error);  // a collapsed face or a failed factorisation
+
+  const lapmesh::Denoising_study study = lapmesh::run_denoising_study(clean, s);
+  ASSERT_EQ(study.records.size(), std::size_t(s.iterations) + 1);
+  const std::string reason = "held: the connected component of vertex " + std::to_string(big) + " (" +
+                             std::to_string(small) + " vertices) since iteration " + std::to_string(held_at);
+  int held_rows = 0, failed_rows = 0;
+  for(const lapmesh::Denoising_record& r : study.records) {
+    if(r.iteration < held_at) {
+      EXPECT_EQ(r.status, lapmesh::Run_status::ok) << r.iteration;
+    } else if(r.status == lapmesh::Run_status::held) {
+      EXPECT_EQ(failed_rows, 0) << r.iteration << ": a held step after the failure";
+      EXPECT_EQ(r.message, reason) << r.iteration;
+      EXPECT_TRUE(std::isfinite(r.deviation.rms_distance)) << r.iteration;
+      ++held_rows;
+    } else {
+      EXPECT_EQ(r.status, lapmesh::Run_status::failed) << r.iteration;
+      EXPECT_FALSE(r.message.empty()) << r.iteration;
+      EXPECT_EQ(r.message.find("held:"), std::string::npos) << r.iteration;
+      ++failed_rows;
+    }
+  }
+  EXPECT_GE(held_rows, 1);
+  EXPECT_GE(failed_rows, 1);
+}
+
 // Negative cotangent weights (obtuse triangles) do not make M - lambda S indefinite: -S is a
 // sum of positive semidefinite element matrices. A one-step flow on a mesh full of obtuse
 // triangles factorises at any lambda.

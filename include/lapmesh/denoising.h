@@ -184,12 +184,13 @@ namespace internal {
 
 struct Stop_run {};
 
-/// Marks `held` the records [first, last) of one run (one per step, in order) from the step at
-/// which a component collapsed on, each naming the components held by then.
+/// Marks `held` the `ok` records [first, last) of one run (one per step, in order) from the step
+/// at which a component collapsed on, each naming the components held by then.
 template <typename RecordIterator>
 void mark_held_records(RecordIterator first, RecordIterator last, const std::vector<Collapsed_component>& held)
 {
   for(; first != last; ++first) {
+    if(first->status != Run_status::ok) continue;
     for(const Collapsed_component& c : held)
       if(c.iteration <= first->iteration) {
         if(first->message.empty()) first->message = "held:";
@@ -268,6 +269,9 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           Run_status status = Run_status::ok;
           std::string message;
           int done = 0;
+          // Collected as they happen: a run that fails after a hold keeps its held steps.
+          std::vector<Collapsed_component> held;
+          settings.held_components = &held;
           Denoising_progress where;
           where.runs_done = runs_done;
           where.total_runs = total_runs;
@@ -302,8 +306,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
             if(!bound_error.empty()) throw Mesh_error(bound_error);
             if(!(base.lambda > 0) || !std::isfinite(base.lambda))
               throw std::invalid_argument("the time step is not a positive finite number");
-            const Smoothing_report report = smooth_positions(t, P, no_constraints, settings);
-            mark_held_records(study.records.end() - done, study.records.end(), report.collapsed_components);
+            smooth_positions(t, P, no_constraints, settings);
           } catch(const Stop_run&) {
           } catch(const Numerical_error& e) {
             // The explicit scheme's divergence check (non-finite positions) lands here too.
@@ -313,6 +316,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
             status = Run_status::failed;
             message = e.what();
           }
+          mark_held_records(study.records.end() - done, study.records.end(), held);
           for(int it = done + 1; it <= s.iterations; ++it) {
             Denoising_record r = base;
             r.iteration = it;

@@ -85,6 +85,9 @@ struct Smoothing_settings
   /// False where `progress` cannot see the positions (the CGAL front end's callback, which gets
   /// the counts alone, while the positions it smooths are its own copy).
   bool progress_reads_positions = true;
+  /// Where set, each component held is appended here as well, when it is held: a caller keeps
+  /// them where a later step fails and the report is lost with the exception.
+  std::vector<Collapsed_component>* held_components = nullptr;
   Spd_direct_solver::External external_solver;  ///< set: used instead of CHOLMOD / Eigen LDL^T
 };
 
@@ -512,9 +515,11 @@ private:
       m_held_input.row(k) = m_spare_input.row(Index(spare - m_spare_vertices.begin()));
     }
     for(std::size_t c = 0; c < count; ++c)
-      if(collapsed[c])
+      if(collapsed[c]) {
         m_report.collapsed_components.push_back(
           {it, std::size_t(tally.first[c]), std::size_t(tally.size[c]), tally.area[c] / m_s.lambda});
+        if(m_s.held_components) m_s.held_components->push_back(m_report.collapsed_components.back());
+      }
   }
 
   /// Per connected component (`component` labels `count` of them): its area at the current
