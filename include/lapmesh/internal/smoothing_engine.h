@@ -424,7 +424,7 @@ private:
   {
     const auto t0 = Clock::now();
     hold_collapsed_components(it);
-    {
+    try {
       const Held_input_shown shown(*this);
       rebuild_operator_after(it, [&] {
         if(m_rebuild_stiffness) {
@@ -438,6 +438,17 @@ private:
         }
         require_positive_mass(m_pencil.mass, m_s.area);
       });
+    } catch(const Mesh_error& e) {
+      // A component shrunk to nearly a point loses its faces' and vertices' areas to underflow,
+      // which may come before a factorisation fails: the shrinking is named in both cases.
+      if(m_rebuild) {
+        std::string detail = e.what();
+        const std::string prefix = "iteration " + std::to_string(it) + ": ";
+        if(detail.rfind(prefix, 0) == 0) detail.erase(0, prefix.size());
+        if(e.element() == Mesh_error::Element::face) detail = "face " + std::to_string(e.index()) + " has zero area";
+        throw_if_shrunk_to_a_point(it, detail);
+      }
+      throw;
     }
     m_report.assembly_seconds += seconds_since(t0);
     m_factorized = false;
@@ -783,7 +794,9 @@ private:
     // a connected component shrank so far that its part of M is lost beside lambda S, whose
     // null space holds the component's constant vectors: then no face is to blame.
     if(!ok) {
-      if(m_rebuild) throw_if_shrunk_to_a_point(it);
+      if(m_rebuild)
+        throw_if_shrunk_to_a_point(it, "the Cholesky factorisation of M - lambda S for the next step failed (" +
+                                         m_solver->failure() + "): M is then negligible beside lambda S");
       const auto [face, flatness] = flattest_face(m_t, m_P);
       if(!(flatness < 1e-6))  // no face to blame (a user's solver that failed, say)
         throw Numerical_error("iteration " + std::to_string(it + 1) + ": the factorisation of M - lambda S failed (" +
@@ -801,9 +814,10 @@ private:
     m_report.factorization_seconds += seconds_since(t0);
   }
 
-  /// The error of a failed factorisation after `it` steps when a connected component that moves
-  /// has an area (its faces') below 1e-12 x lambda; nothing otherwise.
-  void throw_if_shrunk_to_a_point(int it) const
+  /// The error of a step that failed after `it` steps (`consequence`: what failed) when a
+  /// connected component that moves has an area (its faces') below 1e-12 x lambda: the shrinking
+  /// is the cause. Nothing otherwise.
+  void throw_if_shrunk_to_a_point(int it, const std::string& consequence) const
   {
     Index components = 0;
     const std::vector<Index> component = connected_component_labels(m_t, &components);
@@ -821,10 +835,8 @@ private:
                                                  std::to_string(tally.first[smallest]) + " (" +
                                                  std::to_string(tally.size[smallest]) + " vertices)";
     throw Numerical_error("iteration " + std::to_string(it) + ": the flow shrank " + what +
-                          " to nearly a point (its area is " + ratio +
-                          " x lambda), and the Cholesky factorisation of M - lambda S for the next step failed (" +
-                          m_solver->failure() + "): M is then negligible beside lambda S; a smaller lambda, fewer "
-                          "iterations or a fixed operator avoid this");
+                          " to nearly a point (its area is " + ratio + " x lambda), and " + consequence +
+                          "; a smaller lambda, fewer iterations or a fixed operator avoid this");
   }
 
   const Mesh_topology& m_t;
