@@ -794,12 +794,7 @@ TEST(Denoising, AShrinkingMeshThatLosesItsVertexAreasSaysItShrank)
   Mesh u;
   lapmesh::io::read_triangle_mesh(lapmesh_test::cgal_mesh("u.off"), u);
   ASSERT_GT(lapmesh::vertex_areas(u).minCoeff(), 0);
-  double edges = 0, length = 0;
-  for(auto e : CGAL::edges(u)) {
-    length += std::sqrt(CGAL::squared_distance(u.point(source(e, u)), u.point(target(e, u))));
-    ++edges;
-  }
-  const double h = length / edges;
+  const double h = lapmesh::mean_edge_length(u);
   std::string error;
   try {
     lapmesh::smooth_laplacian_implicit(u, h * h,

@@ -407,9 +407,9 @@ private:
     // every step. Made for this factorisation alone otherwise: kept, its work space would add
     // to the memory of the solves.
     std::optional<Supernodal_ldlt> single_use;
-    if(m_planned_factorizations > 1 && !m_kept_ldlt) m_kept_ldlt.emplace(*L, Supernodal_ldlt::Structure_use::view);
-    Supernodal_ldlt& ldlt =
-      m_planned_factorizations > 1 ? *m_kept_ldlt : single_use.emplace(*L, Supernodal_ldlt::Structure_use::view);
+    std::optional<Supernodal_ldlt>& slot = m_planned_factorizations > 1 ? m_kept_ldlt : single_use;
+    if(!slot) slot.emplace(*L, Supernodal_ldlt::Structure_use::view);
+    Supernodal_ldlt& ldlt = *slot;
     // A matrix in the given order is already in the factor's order: no permuted copy.
     const MatrixType permuted = in_given_order() ? MatrixType() : ldlt.permuted_lower(A);
     const MatrixType& lower = in_given_order() ? A : permuted;

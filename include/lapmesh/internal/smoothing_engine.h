@@ -424,31 +424,31 @@ private:
   {
     const auto t0 = Clock::now();
     hold_collapsed_components(it);
-    try {
+    {
       const Held_input_shown shown(*this);
       rebuild_operator_after(it, [&] {
-        if(m_rebuild_stiffness) {
-          assemble_operator();
-        } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
-          Laplacian_pencil current;
-          assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
-          m_pencil.mass = std::move(current.mass);
-        } else {
-          m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);
+        try {
+          if(m_rebuild_stiffness) {
+            assemble_operator();
+          } else if(m_s.laplacian == Laplacian::intrinsic_delaunay) {  // its mass is that of the intrinsic triangles
+            Laplacian_pencil current;
+            assemble_pencil(m_t, m_P, m_s.laplacian, m_s.area, m_s.parallel, current, m_s.mollification);
+            m_pencil.mass = std::move(current.mass);
+          } else {
+            m_pencil.mass = vertex_areas(m_t, m_P, m_s.area, m_s.parallel);
+          }
+          require_positive_mass(m_pencil.mass, m_s.area);
+        } catch(const Mesh_error& e) {
+          // A component shrunk to nearly a point loses its faces' and vertices' areas to
+          // underflow, which may come before a factorisation fails: the shrinking is named in
+          // both cases. Otherwise the error goes on to rebuild_operator_after(), which dates it.
+          if(m_rebuild)
+            throw_if_shrunk_to_a_point(it, e.element() == Mesh_error::Element::face
+                                             ? "face " + std::to_string(e.index()) + " has zero area"
+                                             : std::string(e.what()));
+          throw;
         }
-        require_positive_mass(m_pencil.mass, m_s.area);
       });
-    } catch(const Mesh_error& e) {
-      // A component shrunk to nearly a point loses its faces' and vertices' areas to underflow,
-      // which may come before a factorisation fails: the shrinking is named in both cases.
-      if(m_rebuild) {
-        std::string detail = e.what();
-        const std::string prefix = "iteration " + std::to_string(it) + ": ";
-        if(detail.rfind(prefix, 0) == 0) detail.erase(0, prefix.size());
-        if(e.element() == Mesh_error::Element::face) detail = "face " + std::to_string(e.index()) + " has zero area";
-        throw_if_shrunk_to_a_point(it, detail);
-      }
-      throw;
     }
     m_report.assembly_seconds += seconds_since(t0);
     m_factorized = false;
