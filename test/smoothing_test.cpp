@@ -408,6 +408,44 @@ TEST(Smoothing, StabilityBoundMatchesDenseEigenvalue)
   }
 }
 
+TEST(Smoothing, StabilityBoundStopsWhereTheUniformEstimateStalls)
+{
+  // The uniform Laplacian's top eigenvalues lie close together on a large sphere and on CGAL's
+  // elephant: the estimate stalls before the residual bound meets the tolerance. The stalled
+  // estimate must lie above the converged one (the bound on the safe side) and near it, after
+  // fewer products than the cap. On the elephant the estimate pauses after 48 products and falls
+  // again: two checks a window apart would stop there, 1e-3 above the converged value. The
+  // cotangent estimates converge and are those of runs without the stall rule.
+  using namespace lapmesh::internal;
+  Mesh elephant;
+  ASSERT_NO_THROW(lapmesh::io::read_triangle_mesh(cgal_mesh("elephant.off"), elephant));
+  const std::pair<Mesh, double> cases[] = {{jittered(lapmesh::icosphere(5), 0.05, 3), 1e-3}, {elephant, 1e-5}};
+  for(const auto& [m, tolerance] : cases)
+    for(lapmesh::Laplacian lap : {lapmesh::Laplacian::uniform, lapmesh::Laplacian::cotangent}) {
+      const std::string what = std::to_string(num_vertices(m)) + " vertices, " + lapmesh::to_string(lap);
+      const auto pencil = lapmesh::laplacian_pencil(m, LP::laplacian(lap));
+      const std::vector<char> free_mask(std::size_t(pencil.mass.size()), 1);
+      Top_eigenvalue_stopping to_convergence;
+      to_convergence.stall_tol = 0;
+      to_convergence.max_steps = 4000;
+      const Top_eigenvalue_estimate converged = top_eigenvalue_of_minus_laplacian(pencil, free_mask, false, to_convergence);
+      ASSERT_TRUE(converged.converged) << what;
+      const Top_eigenvalue_estimate stalled = top_eigenvalue_of_minus_laplacian(pencil, free_mask, false);
+      if(lap == lapmesh::Laplacian::cotangent) {
+        EXPECT_TRUE(stalled.converged) << what;
+        EXPECT_EQ(stalled.value, converged.value) << what;
+        EXPECT_EQ(stalled.products, converged.products) << what;
+        continue;
+      }
+      EXPECT_FALSE(stalled.converged) << what;
+      EXPECT_LT(stalled.products, Top_eigenvalue_stopping{}.max_steps) << what;
+      EXPECT_LT(stalled.products, converged.products) << what;
+      EXPECT_GE(stalled.value, converged.value) << what;
+      EXPECT_LE(stalled.value, converged.value * (1 + tolerance)) << what;
+      EXPECT_EQ(largest_eigenvalue_of_minus_laplacian(pencil, free_mask, false), stalled.value) << what;
+    }
+}
+
 TEST(Smoothing, TopEigenpairOfTridiagonalMatchesTheDenseSolver)
 {
   // Random tridiagonal matrices of the sizes the Lanczos checks see, of small and large scale, and

@@ -1,6 +1,6 @@
 // Smoothing benchmarks: 10 implicit iterations with re-assembly (100k, 250k, 1M vertices)
 // and 10 explicit iterations (operator built once, as the public libraries do, and rebuilt) on 1M,
-// single- and multi-threaded. Meshes: generated tori (closed, genus 1) and Loop-subdivided scans
+// single- and multi-threaded; the explicit stability bound's Lanczos estimate. Meshes: generated tori (closed, genus 1) and Loop-subdivided scans
 // from CGAL's data set, scaled to unit area (test_arrays).
 // Counters split the time into assembly, symbolic analysis, numeric factorisation and solves.
 //
@@ -119,6 +119,27 @@ void BM_ImplicitReuse(benchmark::State& state) { run(state, lapmesh::Smoothing_s
 void BM_ExplicitFixedOperator(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, true); }
 void BM_ExplicitRebuilt(benchmark::State& state) { run(state, lapmesh::Smoothing_scheme::explicit_euler, false); }
 
+// The explicit scheme's stability bound (the Lanczos estimate of the top eigenvalue of -L on
+// every vertex, barycentric mass). Arg 1: 0 uniform, 1 cotangent; arg 2: 0 runs to the residual
+// tolerance or the cap, 1 also stops where the estimate stalls (the default).
+void BM_StabilityBound(benchmark::State& state)
+{
+  using namespace lapmesh::internal;
+  const Arrays& a = test_arrays(int(state.range(0)));
+  const lapmesh::Laplacian laplacian = state.range(1) == 0 ? lapmesh::Laplacian::uniform : lapmesh::Laplacian::cotangent;
+  lapmesh::Laplacian_pencil pencil;
+  assemble_pencil(a.topology, a.positions, laplacian, lapmesh::Vertex_area::barycentric, false, pencil);
+  const std::vector<char> free_mask(std::size_t(a.topology.num_vertices), 1);
+  Top_eigenvalue_stopping stop;
+  if(state.range(2) == 0) stop.stall_tol = 0;
+  Top_eigenvalue_estimate estimate;
+  for(auto _ : state) estimate = top_eigenvalue_of_minus_laplacian(pencil, free_mask, false, stop);
+  state.counters["vertices"] = double(a.topology.num_vertices);
+  state.counters["products"] = estimate.products;
+  state.counters["converged"] = estimate.converged;
+  state.counters["mu_max"] = estimate.value;
+}
+
 // The public libraries' implicit step (libigl, pmp-library and CGAL's smooth_shape
 // with an LDL^T solver alike), as a same-run baseline: assemble, then a complete Eigen
 // SimplicialLDLT (ordering included) of M - lambda S every iteration, and one 3-column solve.
@@ -203,6 +224,7 @@ BENCHMARK(BM_ImplicitReuse)->ArgsProduct({{1, 2, 3, 100, 250, 1000}, {0}})->Unit
 BENCHMARK(BM_ImplicitPublicStyle)->Arg(1)->Arg(2)->Arg(3)->Arg(100)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ImplicitSurfaceMesh)->Arg(250)->Unit(benchmark::kMillisecond)->Iterations(1);
 BENCHMARK(BM_ExplicitFixedOperator)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_StabilityBound)->ArgsProduct({{1, 3, 250}, {0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(BM_ExplicitRebuilt)->ArgsProduct({{1000}, {0, 1}})->Unit(benchmark::kMillisecond)->Iterations(3);
 
 BENCHMARK_MAIN();

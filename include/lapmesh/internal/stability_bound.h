@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -130,14 +131,39 @@ inline Tridiagonal_top top_eigenpair_of_tridiagonal(const std::vector<double>& a
   return top;
 }
 
+/// What the Lanczos run of top_eigenvalue_of_minus_laplacian() gave, and how it stopped.
+struct Top_eigenvalue_estimate
+{
+  double value = 0;        ///< the top Ritz value plus its residual bound
+  int products = 0;        ///< applications of the operator
+  bool converged = false;  ///< the residual bound met the tolerance (not stalled, not capped)
+};
+
+/// When the Lanczos run for the top eigenvalue stops: its residual bound at `rel_tol` of the Ritz
+/// value, or after `max_steps` products, or once the estimate (Ritz value + residual bound) has
+/// stayed within a band of `stall_tol` of itself at every check of the last `stall_window`
+/// products (`stall_tol` 0: never). The estimate approaches the top eigenvalue from above, so
+/// one that has stalled still lies on the safe side. It can pause on its way down and then fall
+/// again: a window of several checks, rather than two checks a window apart, lets such a pause
+/// pass.
+struct Top_eigenvalue_stopping
+{
+  int max_steps = 400;
+  double rel_tol = 1e-9;
+  double stall_tol = 2e-4;
+  int stall_window = 64;
+};
+
 /// Largest eigenvalue of -M_FF^-1 S_FF (the free block of -L), by Lanczos on the symmetric
 /// form M^-1/2 (-S) M^-1/2, which has the same spectrum. Extreme Ritz values converge first;
 /// no reorthogonalisation is needed for the largest one (ghost copies do not move it). The
-/// returned value is the Ritz value plus its residual bound |beta_k s_k|, so that 2 / result
-/// errs on the safe side. `free_mask[i]` = 0 for fixed vertices.
-inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
-                                                     const std::vector<char>& free_mask, bool parallel,
-                                                     int max_steps = 400, double rel_tol = 1e-9)
+/// value is the Ritz value plus its residual bound |beta_k s_k|, so that 2 / value errs on the
+/// safe side. `free_mask[i]` = 0 for fixed vertices. The top eigenvalues of the uniform
+/// Laplacian (and of any Laplacian on a regular grid) lie close together: there the residual
+/// bound shrinks slowly and the stall rule ends the run.
+inline Top_eigenvalue_estimate top_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
+                                                                 const std::vector<char>& free_mask, bool parallel,
+                                                                 const Top_eigenvalue_stopping& stop = {})
 {
   const Index n = pencil.size;
   Eigen::VectorXd inv_sqrt_m(n), scaled(n);
@@ -167,21 +193,25 @@ inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
     state = state * 6364136223846793005ull + 1442695040888963407ull;
     v[i] = free_mask[i] ? double(state >> 11) / double(1ull << 53) - 0.5 : 0.0;
   }
+  Top_eigenvalue_estimate result;
   const double norm0 = v.norm();
-  if(!(norm0 > 0)) return 0.0;
+  if(!(norm0 > 0)) return result;
   v /= norm0;
-  std::vector<double> alpha, beta;
-  double estimate = 0;
-  for(int k = 0; k < max_steps; ++k) {
+  // The checks come every 8 products; the stall rule reads the checks of the last window.
+  constexpr int check_every = 8;
+  const int checks_per_window = std::max(1, stop.stall_window / check_every);
+  std::vector<double> alpha, beta, checked_estimates;
+  for(int k = 0; k < stop.max_steps; ++k) {
     apply(v, w);
     const double a = w.dot(v);
     w -= a * v;
     if(k > 0) w -= beta.back() * v_prev;
     alpha.push_back(a);
     const double b = w.norm();
-    // The top Ritz value of the tridiagonal matrix, every 8 steps (O(m^2) each).
+    // The top Ritz value of the tridiagonal matrix, at each check (O(m^2) each).
     const int m = int(alpha.size());
-    if(m % 8 != 0 && m != max_steps && !(b <= 1e-14 * std::abs(a))) {
+    result.products = m;
+    if(m % check_every != 0 && m != stop.max_steps && !(b <= 1e-14 * std::abs(a))) {
       beta.push_back(b);
       v_prev.swap(v);
       v = w / b;
@@ -190,13 +220,31 @@ inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
     const Tridiagonal_top top = top_eigenpair_of_tridiagonal(alpha, beta);
     const double theta = top.value;
     const double residual = std::abs(b * top.last_component);
-    estimate = theta + residual;
-    if(residual <= rel_tol * theta || b <= 1e-14 * std::abs(theta)) break;
+    result.value = theta + residual;
+    if(residual <= stop.rel_tol * theta || b <= 1e-14 * std::abs(theta)) {
+      result.converged = true;
+      break;
+    }
+    if(m % check_every == 0) {
+      checked_estimates.push_back(result.value);
+      const std::size_t count = checked_estimates.size(), span = std::size_t(checks_per_window) + 1;
+      if(stop.stall_tol > 0 && count >= span) {
+        const auto window = std::minmax_element(checked_estimates.end() - std::ptrdiff_t(span), checked_estimates.end());
+        if(*window.second - *window.first <= stop.stall_tol * std::abs(result.value)) break;
+      }
+    }
     beta.push_back(b);
     v_prev.swap(v);
     v = w / b;
   }
-  return estimate;
+  return result;
+}
+
+/// The value of top_eigenvalue_of_minus_laplacian() with the default stopping rule.
+inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
+                                                     const std::vector<char>& free_mask, bool parallel)
+{
+  return top_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel).value;
 }
 
 /// 2 / mu for a largest eigenvalue mu of -L; infinity when mu <= 0 (nothing is unstable).
