@@ -212,11 +212,10 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
         for(double tau : s.time_steps) {
           const auto best_step = study.best(level, scheme, lap, tau);
           const double run_best = best_step ? best_step->deviation.rms_distance : std::numeric_limits<double>::infinity();
-          double run_final = std::nan("");
-          for(const auto& r : study.records)
-            if(r.noise_level == level && r.scheme == scheme && r.laplacian == lap && r.time_step == tau &&
-               r.iteration == s.iterations && lapmesh::Denoising_study::counts_for_best(r))
-              run_final = r.deviation.rms_distance;
+          const std::vector<lapmesh::Denoising_record> run = study.run(level, scheme, lap, tau);
+          const bool final_counts = !run.empty() && run.back().iteration == s.iterations &&
+                                    lapmesh::Denoising_study::counts_for_best(run.back());
+          const double run_final = final_counts ? run.back().deviation.rms_distance : std::nan("");
           best_of_run.x.push_back(tau);
           best_of_run.y.push_back(best_step ? run_best : std::nan(""));
           final_of_run.x.push_back(tau);
@@ -233,11 +232,10 @@ std::string render_plot(const std::string& name, const lapmesh::Denoising_study&
         curve.label = std::string(lapmesh::to_string(scheme)) + " " + lapmesh::to_string(lap) +
                       (std::isfinite(best_tau) ? ", lambda " + format(best_tau) : std::string());
         curve.empty_note = "no run stayed finite: see the CSV's error column";
-        for(const auto& r : study.records)
-          if(r.noise_level == level && r.scheme == scheme && r.laplacian == lap && r.time_step == best_tau) {
-            curve.x.push_back(r.iteration);
-            curve.y.push_back(r.deviation.rms_distance);
-          }
+        for(const auto& r : study.run(level, scheme, lap, best_tau)) {
+          curve.x.push_back(r.iteration);
+          curve.y.push_back(r.deviation.rms_distance);
+        }
         curves.series.push_back(curve);
       }
     top.push_back(curves);

@@ -955,6 +955,27 @@ TEST(Denoising, StudyMarksTheStepsAfterAComponentWasHeld)
   EXPECT_EQ(run_best->time_step, 0.01);
   EXPECT_LT(run_best->iteration, held_at);
   EXPECT_FALSE(closer.best(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::uniform, 0.01).has_value());
+
+  // Each run's records, from iteration 0 on, are the study's rows of that run; a run the study
+  // did not make has none.
+  for(std::size_t k = 0; k < s.time_steps.size(); ++k) {
+    const double tau = s.time_steps[k];
+    const std::vector<lapmesh::Denoising_record> run =
+      study.run(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::cotangent, tau);
+    ASSERT_EQ(run.size(), std::size_t(s.iterations) + 1) << tau;
+    for(std::size_t i = 0; i < run.size(); ++i) {
+      const lapmesh::Denoising_record& row = study.records[k * run.size() + i];
+      EXPECT_EQ(run[i].iteration, int(i)) << tau;
+      EXPECT_EQ(run[i].time_step, tau);
+      EXPECT_EQ(run[i].status, row.status) << tau << ", " << i;
+      EXPECT_EQ(run[i].deviation.rms_distance, row.deviation.rms_distance) << tau << ", " << i;
+    }
+  }
+  EXPECT_EQ(study.run(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::cotangent, 0.01).back().status,
+            lapmesh::Run_status::held);
+  EXPECT_TRUE(study.run(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::uniform, 0.01).empty());
+  EXPECT_TRUE(study.run(0.0, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::cotangent, 0.02).empty());
+  EXPECT_TRUE(study.run(0.05, lapmesh::Smoothing_scheme::implicit_euler, lapmesh::Laplacian::cotangent, 0.01).empty());
 }
 
 // A run that holds a component and fails at a later step keeps its steps from the hold on

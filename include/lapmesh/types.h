@@ -362,9 +362,18 @@ struct Denoising_study
   std::optional<Denoising_record> best(double level, Smoothing_scheme scheme, Laplacian laplacian,
                                        double time_step) const
   {
-    return best_where([&](const Denoising_record& r) {
-      return r.noise_level == level && r.scheme == scheme && r.laplacian == laplacian && r.time_step == time_step;
-    });
+    return best_where([&](const Denoising_record& r) { return in_run(r, level, scheme, laplacian, time_step); });
+  }
+
+  /// The records of the run of this level, scheme, Laplacian and time step (in the settings'
+  /// unit), in iteration order from iteration 0 (the noisy mesh); empty when there is no such run.
+  /// A run has a record for every iteration, whatever its status: the last one is the run's end.
+  std::vector<Denoising_record> run(double level, Smoothing_scheme scheme, Laplacian laplacian, double time_step) const
+  {
+    std::vector<Denoising_record> out;
+    for(const auto& r : records)
+      if(in_run(r, level, scheme, laplacian, time_step)) out.push_back(r);
+    return out;
   }
 
   /// The largest Mesh_deviation::hausdorff_coarsening of the records (1: every grid as asked).
@@ -377,6 +386,12 @@ struct Denoising_study
   }
 
 private:
+  static bool in_run(const Denoising_record& r, double level, Smoothing_scheme scheme, Laplacian laplacian,
+                     double time_step)
+  {
+    return r.noise_level == level && r.scheme == scheme && r.laplacian == laplacian && r.time_step == time_step;
+  }
+
   template <typename Selected>
   std::optional<Denoising_record> best_where(const Selected& selected) const
   {
