@@ -1,7 +1,8 @@
 // Smoothing benchmarks: 10 implicit iterations with re-assembly (100k, 250k, 1M vertices)
 // and 10 explicit iterations (operator built once, as the public libraries do, and rebuilt) on 1M,
-// single- and multi-threaded; the explicit stability bound's Lanczos estimate. Meshes: generated tori (closed, genus 1) and Loop-subdivided scans
-// from CGAL's data set, scaled to unit area (test_arrays).
+// single- and multi-threaded, and the explicit stability bound's Lanczos estimate. Meshes:
+// generated tori (closed, genus 1) and Loop-subdivided scans from CGAL's data set, scaled to unit
+// area (test_arrays).
 // Counters split the time into assembly, symbolic analysis, numeric factorisation and solves.
 //
 //   smoothing_benchmark --benchmark_filter=Implicit/250
