@@ -1251,6 +1251,27 @@ TEST(Smoothing, ExplicitSkipsLanczosWhenGershgorinProvesStability)
   EXPECT_GT(r.stability_bound, 0.3 * bound);
 }
 
+TEST(Smoothing, ExplicitReportsAKnownStabilityBoundAsGiven)
+{
+  // A caller that has the bound hands it over: the report holds it as given (here half the true
+  // one, which no estimate would give) and judges lambda against it, below the Gershgorin bound
+  // and above it, where the smoother would otherwise run Lanczos; the steps are the same.
+  const Mesh m = to_mesh(lapmesh::icosphere(3));
+  const double bound = lapmesh::explicit_stability_bound(m), given = 0.5 * bound;
+  for(double fraction : {0.05, 0.9}) {
+    const auto its = CGAL::parameters::number_of_iterations(2);
+    Mesh computed = m, handed = m;
+    const auto rc = lapmesh::smooth_laplacian_explicit(computed, fraction * bound, its);
+    const auto rh = lapmesh::smooth_laplacian_explicit(handed, fraction * bound, LP::known_stability_bound(given, its));
+    EXPECT_EQ(rc.stability_bound_exact, fraction > 0.5) << fraction;  // Lanczos above Gershgorin only
+    EXPECT_TRUE(rh.stability_bound_exact) << fraction;
+    EXPECT_EQ(rh.stability_bound, given) << fraction;
+    EXPECT_EQ(rh.above_stability_bound, fraction * bound > given) << fraction;
+    EXPECT_FALSE(rc.above_stability_bound) << fraction;
+    for(auto v : vertices(m)) ASSERT_EQ(computed.point(v), handed.point(v)) << fraction;
+  }
+}
+
 TEST(Smoothing, FixedVerticesNeverMoveBitwise)
 {
   const Mesh input = to_mesh(bumpy_patch(15));

@@ -266,6 +266,7 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
           settings.iterations = s.iterations;
           settings.fixed_operator = s.fixed_operator;
           settings.restore_volume = s.restore_volume;
+          settings.known_stability_bound = bound;  // of the same operator and free vertices
           Run_status status = Run_status::ok;
           std::string message;
           int done = 0;

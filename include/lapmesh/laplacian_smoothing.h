@@ -52,6 +52,10 @@ LAPMESH_NAMED_PARAMETER(progress_callback)
 /// stability bound (otherwise skipped when lambda is below the Gershgorin bound, which proves
 /// stability on its own).
 LAPMESH_NAMED_PARAMETER(compute_stability_bound)
+/// double; default none: the explicit stability bound of the mesh with the same named parameters,
+/// as explicit_stability_bound() gave it, for a caller that has computed it already (to choose
+/// lambda or to warn): the explicit scheme reports it and does not run the Lanczos estimate again.
+LAPMESH_NAMED_PARAMETER(known_stability_bound)
 /// bool; default true: use CHOLMOD (supernodal) for the implicit schemes when lapmesh is
 /// compiled with LAPMESH_HAS_CHOLMOD; false forces Eigen's SimplicialLDLT.
 LAPMESH_NAMED_PARAMETER(use_cholmod)
@@ -110,6 +114,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
   s.fix_boundary = choose_parameter(get_parameter(np, internal_np::fix_boundary), true);
   s.parallel = is_parallel<ConcurrencyTag>();
   s.compute_stability_bound = choose_parameter(get_parameter(np, internal_np::compute_stability_bound), false);
+  s.known_stability_bound = choose_parameter(get_parameter(np, internal_np::known_stability_bound),
+                                             std::numeric_limits<double>::quiet_NaN());
   s.use_cholmod = choose_parameter(get_parameter(np, internal_np::use_cholmod), true);
   s.reuse_factorization = choose_parameter(get_parameter(np, internal_np::reuse_factorization), false);
   if constexpr(!is_default_parameter<NamedParameters, internal_np::progress_callback_t>::value) {
@@ -176,8 +182,9 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 /// Stable only for lambda below 2 / mu_max, mu_max the largest eigenvalue of -L on the free
 /// vertices (explicit_stability_bound()). The report's `stability_bound` is that bound of the
 /// input mesh (`stability_bound_exact` true) when lambda exceeds the cheap Gershgorin bound or
-/// `compute_stability_bound(true)` is given; otherwise it is the Gershgorin bound, a lower
-/// bound that already proves lambda stable. `above_stability_bound` is set when lambda exceeds
+/// `compute_stability_bound(true)` is given, or the bound passed as `known_stability_bound`;
+/// otherwise it is the Gershgorin bound, a lower bound that already proves lambda stable.
+/// `above_stability_bound` is set when lambda exceeds
 /// the bound. To show or reuse the bound itself, call explicit_stability_bound(). With the
 /// operator rebuilt every iteration (default) the bound can drift as the mesh changes.
 ///
@@ -191,6 +198,8 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 ///   - `lapmesh::parameters::laplacian` (default cotangent), `vertex_area` (default barycentric)
 ///   - `lapmesh::parameters::fixed_operator` (default false), `restore_volume` (default false),
 ///     `restore_area` (default false), `fix_boundary` (default true), `progress_callback`
+///   - `lapmesh::parameters::compute_stability_bound` (default false), `known_stability_bound`
+///     (default none)
 ///   - `CGAL::parameters::sparse_linear_solver` (implicit and conformal schemes: a model of CGAL's
 ///     `SparseLinearAlgebraWithFactorTraits_d`, e.g. `CGAL::Eigen_solver_traits<Eigen::SimplicialLDLT<...>>`,
 ///     factorised once per system, or of `SparseLinearAlgebraTraits_d`, e.g. the iterative

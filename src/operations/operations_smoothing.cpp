@@ -78,8 +78,9 @@ Smooth_result smooth_numbered(Mesh& mesh, const Smooth_settings& s, const Number
     LP::mollification_factor(s.mollification, LP::vertex_area(s.area, LP::laplacian(s.laplacian, numbering))));
   Smooth_result out;
   // The explicit scheme's bound is computed once, by explicit_stability_bound() on the input's
-  // free vertices, and serves the automatic step, the bound unit, the warning and the report
-  // (the smoother's own report may hold a cheaper Gershgorin bound instead).
+  // free vertices, and serves the automatic step, the bound unit, the warning and the report: the
+  // smoother is handed it, and would otherwise compute it again where lambda exceeds the
+  // Gershgorin bound (as 0.9 of it does).
   const bool explicit_scheme = s.scheme == lapmesh::Smoothing_scheme::explicit_euler;
   if(explicit_scheme) out.stability_bound = lapmesh::explicit_stability_bound(mesh, base);
   // With no free vertex the bound is infinite and a step relative to it undefined.
@@ -97,12 +98,14 @@ Smooth_result smooth_numbered(Mesh& mesh, const Smooth_settings& s, const Number
                    ? s.lambda.value * out.stability_bound
                    : lapmesh::time_step(mesh, s.lambda.value, s.lambda.unit, base);
 
-  const auto np = LP::reuse_factorization(
-                    s.reuse_factorization,
-                    LP::progress_callback(
-                      s.progress,
-                      LP::restore_area(s.restore_area,
-                                       LP::restore_volume(s.restore_volume, LP::fixed_operator(s.fixed_operator, base)))))
+  const auto np = LP::known_stability_bound(
+                    out.stability_bound,
+                    LP::reuse_factorization(
+                      s.reuse_factorization,
+                      LP::progress_callback(
+                        s.progress,
+                        LP::restore_area(s.restore_area,
+                                         LP::restore_volume(s.restore_volume, LP::fixed_operator(s.fixed_operator, base))))))
                     .number_of_iterations(unsigned(s.iterations));
   Mesh work = mesh;  // a cancelled or failed run leaves the mesh as it was
   switch(s.scheme) {

@@ -74,6 +74,9 @@ struct Smoothing_settings
   bool fix_boundary = true;   ///< false: boundary vertices move (natural Neumann condition)
   bool parallel = false;
   bool compute_stability_bound = false;  ///< always run Lanczos for the explicit scheme
+  /// The explicit scheme's bound where the caller has computed it already (explicit_stability_bound()
+  /// of the same operator and free vertices): reported as it is, not computed again. NaN: unknown.
+  double known_stability_bound = std::numeric_limits<double>::quiet_NaN();
   bool use_cholmod = true;               ///< with LAPMESH_HAS_CHOLMOD: CHOLMOD supernodal LL^T
   /// Rebuilt operator: solve with conjugate gradients preconditioned by the last Cholesky
   /// factor (relative residual 1e-12) and refactorise only when that needs > 10 iterations
@@ -242,7 +245,10 @@ private:
     if(is_explicit()) {
       // Below the Gershgorin bound the scheme is provably stable: the Lanczos estimate is not needed.
       const double gershgorin = gershgorin_stability_bound(operator_arrays(), m_free_mask);
-      if(m_s.compute_stability_bound || m_s.lambda > gershgorin) {
+      if(!std::isnan(m_s.known_stability_bound)) {
+        m_report.stability_bound = m_s.known_stability_bound;
+        m_report.stability_bound_exact = true;
+      } else if(m_s.compute_stability_bound || m_s.lambda > gershgorin) {
         m_report.stability_bound = explicit_stability_bound(operator_arrays(), m_free_mask, m_s.parallel);
         m_report.stability_bound_exact = true;
       } else {
