@@ -184,9 +184,9 @@ Smoothing_report smooth_mesh(Smoothing_scheme scheme, TriangleMesh& tm, double l
 /// input mesh (`stability_bound_exact` true) when lambda exceeds the cheap Gershgorin bound or
 /// `compute_stability_bound(true)` is given, or the bound passed as `known_stability_bound`;
 /// otherwise it is the Gershgorin bound, a lower bound that already proves lambda stable.
-/// `above_stability_bound` is set when lambda exceeds
-/// the bound. To show or reuse the bound itself, call explicit_stability_bound(). With the
-/// operator rebuilt every iteration (default) the bound can drift as the mesh changes.
+/// `above_stability_bound` is set when lambda exceeds the bound. To show or reuse the bound
+/// itself, call explicit_stability_bound(). With the operator rebuilt every iteration (default)
+/// the bound can drift as the mesh changes.
 ///
 /// @tparam ConcurrencyTag `CGAL::Sequential_tag` or `CGAL::Parallel_tag`
 /// @param tm a triangle mesh; positions are written through the vertex point map
