@@ -229,19 +229,25 @@ inline Denoising_study run_denoising_study(const Mesh_topology& t, const Positio
     const double sigma = add_noise(t, noisy, level, s.noise_direction, s.noise_scale, s.seed);
     const Mesh_deviation noisy_deviation = meter.measure(noisy);
     const double h = mean_edge_length(t, noisy);
+    // The explicit bound of the noisy mesh (what a user would compute), once per Laplacian: the
+    // rows of every scheme report it.
+    std::vector<double> bounds(s.laplacians.size(), std::numeric_limits<double>::quiet_NaN());
+    std::vector<std::string> bound_errors(s.laplacians.size());
+    for(std::size_t l = 0; l < s.laplacians.size(); ++l) {
+      try {
+        Laplacian_pencil pencil;
+        assemble_pencil(t, noisy, s.laplacians[l], s.area, false, pencil, s.mollification);
+        require_positive_mass(s.laplacians[l], pencil.mass, s.area);
+        bounds[l] = explicit_stability_bound(pencil, free_mask, false);
+      } catch(const std::exception& e) {
+        bound_errors[l] = std::string("the noisy mesh: ") + e.what();
+      }
+    }
     for(Smoothing_scheme scheme : s.schemes)
-      for(Laplacian lap : s.laplacians) {
-        // The explicit bound of the noisy mesh (what a user would compute), once per Laplacian.
-        double bound = std::numeric_limits<double>::quiet_NaN();
-        std::string bound_error;
-        try {
-          Laplacian_pencil pencil;
-          assemble_pencil(t, noisy, lap, s.area, false, pencil, s.mollification);
-          require_positive_mass(lap, pencil.mass, s.area);
-          bound = explicit_stability_bound(pencil, free_mask, false);
-        } catch(const std::exception& e) {
-          bound_error = std::string("the noisy mesh: ") + e.what();
-        }
+      for(std::size_t l = 0; l < s.laplacians.size(); ++l) {
+        const Laplacian lap = s.laplacians[l];
+        const double bound = bounds[l];
+        const std::string& bound_error = bound_errors[l];
         for(double tau : s.time_steps) {
           Denoising_record base;
           base.noise_level = level;

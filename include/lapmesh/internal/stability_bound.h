@@ -240,13 +240,6 @@ inline Top_eigenvalue_estimate top_eigenvalue_of_minus_laplacian(const Pencil_ar
   return result;
 }
 
-/// The value of top_eigenvalue_of_minus_laplacian() with the default stopping rule.
-inline double largest_eigenvalue_of_minus_laplacian(const Pencil_arrays& pencil,
-                                                     const std::vector<char>& free_mask, bool parallel)
-{
-  return top_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel).value;
-}
-
 /// 2 / mu for a largest eigenvalue mu of -L; infinity when mu <= 0 (nothing is unstable).
 inline double stability_bound_of(double mu) { return mu > 0 ? 2.0 / mu : std::numeric_limits<double>::infinity(); }
 
@@ -255,7 +248,7 @@ inline double stability_bound_of(double mu) { return mu > 0 ? 2.0 / mu : std::nu
 inline double explicit_stability_bound(const Pencil_arrays& pencil, const std::vector<char>& free_mask,
                                        bool parallel)
 {
-  return stability_bound_of(largest_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel));
+  return stability_bound_of(top_eigenvalue_of_minus_laplacian(pencil, free_mask, parallel).value);
 }
 
 /// Gershgorin on M^-1 S: mu_max <= G = max_i (|S_ii| + sum_j |S_ij|) / M_i over the free
